@@ -1,0 +1,238 @@
+//! A bake: simulate every frame of a scene, write each frame out, and finish with `report.json`,
+//! all inside a staging folder that becomes the output folder at the end.
+//!
+//! A run that turns unstable stops at that frame: the frames baked so far and a report that says
+//! what happened are still moved into place, so the user can see where it went wrong.
+
+use crate::collide;
+use crate::error::{Error, Result};
+use crate::export::{obj, Staging};
+use crate::report::{
+    Backend, ColliderPenetration, Failure, FrameMetrics, GarmentReport, Outputs, Report, Timing,
+    SCHEMA,
+};
+use crate::scene::Scene;
+use crate::sim::{metrics, Simulation};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to run a bake, beyond the scene itself.
+#[derive(Clone, Debug)]
+pub struct BakeOptions {
+    /// The folder to create (replaced if it holds a previous bake).
+    pub out: PathBuf,
+    /// Name of the scene's source, for the report.
+    pub scene_file: String,
+    /// Worker threads; `None` uses every core.
+    pub threads: Option<usize>,
+    /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
+    pub progress: bool,
+}
+
+/// What a finished bake returns.
+#[derive(Clone, Debug)]
+pub struct Bake {
+    pub report: Report,
+    /// The folder written.
+    pub out: PathBuf,
+    /// Positions after the last baked frame, export order (garments in turn, grid order).
+    pub positions: Vec<Vec3>,
+}
+
+/// Builds a rayon pool of `threads` workers (all cores when `None`).
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err(Error::InvalidArgument {
+                flag: "--threads".into(),
+                reason: "must be at least 1".into(),
+            });
+        }
+        builder = builder.num_threads(n);
+    }
+    builder.build().map_err(|e| Error::InvalidArgument {
+        flag: "--threads".into(),
+        reason: e.to_string(),
+    })
+}
+
+/// Bakes `scene` (validated) into `options.out`.
+pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
+    let pool = thread_pool(options.threads)?;
+    let staging = Staging::new(&options.out)?;
+    let (report, positions) =
+        pool.install(|| run(scene, options, staging.path(), pool.current_num_threads()))?;
+    let path = staging.path().join("report.json");
+    let text = serde_json::to_string_pretty(&report).expect("reports serialise");
+    std::fs::write(&path, text + "\n").map_err(|e| Error::io(&path, "cannot write", e))?;
+    let out = staging.commit()?;
+    Ok(Bake {
+        report,
+        out,
+        positions,
+    })
+}
+
+fn run(
+    scene: &Scene,
+    options: &BakeOptions,
+    dir: &Path,
+    threads: usize,
+) -> Result<(Report, Vec<Vec3>)> {
+    let mut sim = Simulation::new(scene);
+    let obj_dir = dir.join("obj");
+    if scene.output.obj {
+        std::fs::create_dir(&obj_dir).map_err(|e| Error::io(&obj_dir, "cannot create", e))?;
+    }
+    let mut report = empty_report(scene, options, &sim, threads);
+    let initial_energy = sim.energy();
+    let progress = progress_bar(scene.frames as u64, options.progress);
+    let mut frame_ms = Vec::with_capacity(scene.frames as usize);
+    let mut residuals = Vec::new();
+    let mut worst_penetration = vec![collide::Penetration::default(); sim.colliders.len()];
+
+    for frame in 1..=scene.frames {
+        let start = Instant::now();
+        sim.step_frame();
+        frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
+
+        let error = sim.constraint_error();
+        let penetrations = collide::penetrations(&sim.colliders, &sim.state.positions);
+        for (w, p) in worst_penetration.iter_mut().zip(&penetrations) {
+            w.inside = w.inside.max(p.inside);
+            w.deepest = w.deepest.max(p.deepest);
+        }
+        let metrics = frame_metrics(frame, &error, &penetrations);
+        if report
+            .worst_frame
+            .as_ref()
+            .is_none_or(|w| error.max_strain > w.max_strain)
+        {
+            report.worst_frame = Some(metrics.clone());
+        }
+        report.last_frame = Some(metrics);
+        if let Some(r) = &sim.residuals {
+            residuals.push(r.clone());
+        }
+        let unstable = metrics::instability(
+            &sim.state,
+            &error,
+            &sim.energy(),
+            &initial_energy,
+            sim.integrating(),
+        );
+        if let Some(reason) = unstable {
+            report.failure = Some(Failure { frame, reason });
+            break;
+        }
+        if scene.output.obj {
+            let positions = sim.export_positions();
+            for g in &sim.model.garments {
+                obj::write_frame(&obj_dir, g, frame, &positions[g.export.clone()])?;
+            }
+        }
+        report.frames_baked = frame;
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    report.ms_per_frame = Timing::of(&frame_ms);
+    report.stable = report.failure.is_none();
+    report.worst_penetrations = collider_penetrations(&worst_penetration);
+    if sim.residuals.is_some() {
+        report.residuals = Some(residuals);
+    }
+    Ok((report, sim.export_positions()))
+}
+
+fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads: usize) -> Report {
+    let model = &sim.model;
+    Report {
+        schema: SCHEMA,
+        drape_version: env!("CARGO_PKG_VERSION"),
+        scene: scene.name.clone(),
+        scene_file: options.scene_file.clone(),
+        backend: Backend {
+            kind: "cpu",
+            threads,
+        },
+        solver: scene.solver.clone(),
+        integrator: scene.integrator,
+        fps: scene.fps,
+        substeps: sim.substeps,
+        step_seconds: sim.step,
+        particles: model.particle_count(),
+        springs: model.springs.len(),
+        garments: model
+            .garments
+            .iter()
+            .map(|g| GarmentReport {
+                name: g.name.clone(),
+                particles: g.export.len(),
+                pinned: g
+                    .export
+                    .clone()
+                    .filter(|&e| model.inv_mass[model.storage_of[e] as usize] == 0.0)
+                    .count(),
+                stretch_springs: g.stretch_springs,
+                shear_springs: g.shear_springs,
+                bend_springs: g.bend_springs,
+                colours: g.colours,
+            })
+            .collect(),
+        frames_requested: scene.frames,
+        frames_baked: 0,
+        ms_per_frame: Timing::default(),
+        last_frame: None,
+        worst_frame: None,
+        worst_penetrations: Vec::new(),
+        stable: true,
+        failure: None,
+        residuals: None,
+        outputs: Outputs {
+            obj: scene.output.obj.then(|| "obj".to_string()),
+        },
+    }
+}
+
+fn frame_metrics(
+    frame: u32,
+    e: &metrics::ConstraintError,
+    p: &[collide::Penetration],
+) -> FrameMetrics {
+    FrameMetrics {
+        frame,
+        total_squared_error: e.total_squared_error,
+        mean_strain: e.mean_strain,
+        max_strain: e.max_strain,
+        penetrations: collider_penetrations(p),
+    }
+}
+
+fn collider_penetrations(p: &[collide::Penetration]) -> Vec<ColliderPenetration> {
+    p.iter()
+        .enumerate()
+        .map(|(collider, &penetration)| ColliderPenetration {
+            collider,
+            penetration,
+        })
+        .collect()
+}
+
+fn progress_bar(frames: u64, show: bool) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    // The stderr target draws nothing when stderr is not a terminal.
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(frames),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed} (eta {eta})")
+    {
+        bar.set_style(style);
+    }
+    bar
+}

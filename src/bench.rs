@@ -1,0 +1,121 @@
+//! Solver timings on the reference scenes, shared by `drape bench` and the tests that keep it from
+//! rotting. Times are wall clock on whatever machine runs them: they are printed and written to
+//! CSV, never asserted.
+
+use crate::bake::thread_pool;
+use crate::collide;
+use crate::error::Result;
+use crate::scene::{Scene, SolverKind};
+use crate::sim::Simulation;
+use std::time::Instant;
+
+/// Every solver, in the order benches list them.
+pub const SOLVERS: [SolverKind; 4] = [
+    SolverKind::Rbgs,
+    SolverKind::Gs,
+    SolverKind::Jacobi,
+    SolverKind::Pbd,
+];
+
+/// Cost and result of solver iterations on a relaxation scene (scene E).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct IterationTiming {
+    pub solver: &'static str,
+    pub threads: usize,
+    pub iterations: u32,
+    pub us_per_iteration: f64,
+    /// Total squared error after the timed iterations [m²].
+    pub residual: f64,
+}
+
+/// Times `iterations` outer iterations (local step + one sweep each) of `kind` on `scene`.
+pub fn time_iterations(
+    scene: &Scene,
+    kind: SolverKind,
+    threads: usize,
+    iterations: u32,
+) -> Result<IterationTiming> {
+    let mut scene = scene.clone();
+    scene.solver.kind = kind;
+    scene.solver.iterations = iterations;
+    scene.solver.inner_iterations = 1;
+    scene.output.residuals = false;
+    let pool = thread_pool(Some(threads))?;
+    pool.install(|| {
+        // One untimed frame warms caches and the pool; the timed one restarts from rest.
+        let mut warm = Simulation::new(&scene);
+        warm.step_frame();
+        let mut sim = Simulation::new(&scene);
+        let start = Instant::now();
+        sim.substep();
+        let seconds = start.elapsed().as_secs_f64();
+        Ok(IterationTiming {
+            solver: kind.name(),
+            threads,
+            iterations,
+            us_per_iteration: seconds * 1e6 / iterations as f64,
+            residual: sim.constraint_error().total_squared_error,
+        })
+    })
+}
+
+/// Cost and accuracy of baking frames of a scene with one solver.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameTiming {
+    pub scene: String,
+    pub solver: &'static str,
+    pub threads: usize,
+    pub frames: u32,
+    pub ms_per_frame_median: f64,
+    pub ms_per_frame_mean: f64,
+    pub mean_strain: f64,
+    pub max_strain: f64,
+    /// Particles inside any collider after the last frame.
+    pub inside: usize,
+    /// Deepest of them [m].
+    pub deepest: f32,
+    pub stable: bool,
+}
+
+/// Simulates `frames` frames of `scene` with `kind` (no files written).
+pub fn time_frames(
+    scene: &Scene,
+    kind: SolverKind,
+    threads: usize,
+    frames: u32,
+) -> Result<FrameTiming> {
+    let mut scene = scene.clone();
+    scene.solver.kind = kind;
+    scene.output.residuals = false;
+    let pool = thread_pool(Some(threads))?;
+    pool.install(|| {
+        let mut sim = Simulation::new(&scene);
+        let mut ms = Vec::with_capacity(frames as usize);
+        let mut stable = true;
+        for _ in 0..frames {
+            let start = Instant::now();
+            sim.step_frame();
+            ms.push(start.elapsed().as_secs_f64() * 1e3);
+            if !sim.state.is_finite() {
+                stable = false;
+                break;
+            }
+        }
+        let timing = crate::report::Timing::of(&ms);
+        let error = sim.constraint_error();
+        let pen = collide::penetrations(&sim.colliders, &sim.state.positions);
+        Ok(FrameTiming {
+            scene: scene.name.clone(),
+            solver: kind.name(),
+            threads,
+            frames,
+            ms_per_frame_median: timing.median,
+            ms_per_frame_mean: timing.mean,
+            mean_strain: error.mean_strain,
+            max_strain: error.max_strain,
+            inside: pen.iter().map(|p| p.inside).sum(),
+            deepest: pen.iter().map(|p| p.deepest).fold(0.0, f32::max),
+            stable: stable && error.max_strain <= 1.0,
+        })
+    })
+}

@@ -1,0 +1,99 @@
+//! What the user typed (clap derive). Nothing here reads files; `resolve` does.
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+
+/// drape: bakes garment animation with Projective Dynamics and red-black Gauss-Seidel.
+#[derive(Parser, Debug)]
+#[command(name = "drape", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Simulate a scene and write OBJ frames and report.json.
+    Bake(BakeArgs),
+    /// Validate a scene and print its counts, colours and memory estimate.
+    Inspect(InspectArgs),
+    /// Time the solvers on the reference scenes.
+    Bench(BenchArgs),
+}
+
+/// Which solver to use (overrides the scene's `solver.kind`).
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum SolverArg {
+    /// Projective Dynamics, sequential Gauss-Seidel.
+    Gs,
+    /// Projective Dynamics, Jacobi.
+    Jacobi,
+    /// Projective Dynamics, red-black (multi-colour) Gauss-Seidel.
+    Rbgs,
+    /// Position Based Dynamics, Jacobi.
+    Pbd,
+}
+
+#[derive(Args, Debug)]
+pub struct SceneArgs {
+    /// Scene file (JSON). Without one, the embedded default scene (hanging cloth).
+    pub scene: Option<PathBuf>,
+    /// Solver, overriding the scene's.
+    #[arg(long, value_enum)]
+    pub solver: Option<SolverArg>,
+    /// Number of frames, overriding the scene's.
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Outer solver iterations per substep, overriding the scene's.
+    #[arg(long)]
+    pub iterations: Option<u32>,
+    /// Over-relaxation factor ω in (0, 2), overriding the scene's.
+    #[arg(long)]
+    pub omega: Option<f32>,
+    /// Substeps per frame, overriding the scene's.
+    #[arg(long)]
+    pub substeps: Option<u32>,
+}
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output folder (created; a previous bake there is replaced). Default: out/<scene name>.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+pub struct InspectArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// What to time.
+    #[arg(value_enum)]
+    pub what: BenchWhat,
+    /// Thread counts to compare, e.g. `--threads 1,2` (default: 1 and every core).
+    #[arg(long, value_delimiter = ',')]
+    pub threads: Vec<usize>,
+    /// Frames of scenes H and S to bake (default 120, as the scenes define).
+    #[arg(long, default_value_t = 120)]
+    pub frames: u32,
+    /// Iterations to time on scene E.
+    #[arg(long, default_value_t = 200)]
+    pub iterations: u32,
+    /// Write the results as CSV here too.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum BenchWhat {
+    /// Every solver on scenes E (µs per iteration), H and S (ms per frame and stretch).
+    Solvers,
+}

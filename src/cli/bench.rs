@@ -1,0 +1,102 @@
+//! `drape bench solvers`: µs per iteration on scene E and ms per frame with stretch on scenes H
+//! and S, for every solver and thread count; printed and optionally written as CSV.
+
+use super::args::{BenchArgs, BenchWhat};
+use drape::bench::{time_frames, time_iterations, SOLVERS};
+use drape::scene::reference;
+use std::fmt::Write as _;
+
+pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
+    let BenchWhat::Solvers = args.what;
+    let threads = if args.threads.is_empty() {
+        let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+        if all > 1 {
+            vec![1, all]
+        } else {
+            vec![1]
+        }
+    } else {
+        args.threads.clone()
+    };
+    let e = reference::load(reference::ENLARGED_CLOTH, "enlarged_cloth.json");
+    let h = reference::load(reference::HANGING_CLOTH, "hanging_cloth.json");
+    let s = reference::load(reference::SPHERE_DRAPE, "sphere_drape.json");
+    let mut csv = String::from("scene,solver,threads,iterations_or_frames,us_per_iteration,ms_per_frame_median,total_squared_error,mean_strain,max_strain,inside,deepest_m,stable\n");
+
+    println!(
+        "scene E ({} iterations from the 5x-stretched start):",
+        args.iterations
+    );
+    println!(
+        "  {:<8} {:>7} {:>14} {:>16}",
+        "solver", "threads", "µs/iteration", "squared error"
+    );
+    for &t in &threads {
+        for kind in SOLVERS {
+            let r = time_iterations(&e, kind, t, args.iterations)?;
+            println!(
+                "  {:<8} {:>7} {:>14.1} {:>16.4e}",
+                r.solver, t, r.us_per_iteration, r.residual
+            );
+            let _ = writeln!(
+                csv,
+                "E,{},{t},{},{:.3},,{:e},,,,,",
+                r.solver, r.iterations, r.us_per_iteration, r.residual
+            );
+        }
+    }
+    for scene in [&h, &s] {
+        println!(
+            "scene {} ({} frames, {} substeps x {} iterations):",
+            scene.name,
+            args.frames,
+            scene.substeps_per_frame(),
+            scene.solver.iterations
+        );
+        println!(
+            "  {:<8} {:>7} {:>10} {:>12} {:>12} {:>8} {:>10} {:>7}",
+            "solver",
+            "threads",
+            "ms/frame",
+            "mean strain",
+            "max strain",
+            "inside",
+            "deepest",
+            "stable"
+        );
+        for &t in &threads {
+            for kind in SOLVERS {
+                let r = time_frames(scene, kind, t, args.frames)?;
+                println!(
+                    "  {:<8} {:>7} {:>10.2} {:>11.3}% {:>11.2}% {:>8} {:>8.1}mm {:>7}",
+                    r.solver,
+                    t,
+                    r.ms_per_frame_median,
+                    r.mean_strain * 100.0,
+                    r.max_strain * 100.0,
+                    r.inside,
+                    r.deepest * 1e3,
+                    r.stable
+                );
+                let _ = writeln!(
+                    csv,
+                    "{},{},{t},{},,{:.3},,{:e},{:e},{},{:e},{}",
+                    r.scene,
+                    r.solver,
+                    r.frames,
+                    r.ms_per_frame_median,
+                    r.mean_strain,
+                    r.max_strain,
+                    r.inside,
+                    r.deepest,
+                    r.stable
+                );
+            }
+        }
+    }
+    if let Some(path) = &args.csv {
+        std::fs::write(path, csv).map_err(|e| drape::Error::io(path, "cannot write", e))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(0)
+}

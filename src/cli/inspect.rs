@@ -1,0 +1,64 @@
+//! `drape inspect`: validate a scene and print what it would simulate.
+
+use super::args::InspectArgs;
+use super::resolve;
+use drape::garment::{Garment, SpringFamily};
+use drape::sim::Model;
+
+pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
+    let (scene, file) = resolve::scene(&args.scene)?;
+    let garments: Vec<Garment> = scene
+        .garments
+        .iter()
+        .enumerate()
+        .map(|(i, g)| Garment::build(scene.garment_name(i), g))
+        .collect();
+    let model = Model::new(&garments);
+    println!("scene '{}' ({file}): valid", scene.name);
+    println!(
+        "  {} frames at {} fps, {} substeps per frame ({:.3} ms steps), {:?} integrator",
+        scene.frames,
+        scene.fps,
+        scene.substeps_per_frame(),
+        scene.step_seconds() * 1e3,
+        scene.integrator
+    );
+    let s = &scene.solver;
+    println!(
+        "  solver {} with {} outer × {} inner iterations, ω = {}",
+        s.kind.name(),
+        s.iterations,
+        s.inner_iterations,
+        s.omega
+    );
+    for g in &garments {
+        println!(
+            "  garment '{}': {} particles ({} × {} × {}), {} pinned, springs: {} stretch, {} shear, {} bend; {} colours = ({} x + {} y + {} z) mod {}",
+            g.name,
+            g.particle_count(),
+            g.dims[0],
+            g.dims[1],
+            g.dims[2],
+            g.pins.len(),
+            g.spring_count(SpringFamily::Stretch),
+            g.spring_count(SpringFamily::Shear),
+            g.spring_count(SpringFamily::Bend),
+            g.colour_count(),
+            g.colouring.coefficients[0],
+            g.colouring.coefficients[1],
+            g.colouring.coefficients[2],
+            g.colouring.modulus,
+        );
+    }
+    for (c, r) in model.colour_ranges.iter().enumerate() {
+        println!("  colour {c}: {} particles", r.len());
+    }
+    println!("  colliders: {}", scene.colliders.len());
+    println!(
+        "  total: {} particles, {} springs, about {:.2} MiB of solver memory",
+        model.particle_count(),
+        model.springs.len(),
+        model.memory_bytes() as f64 / (1024.0 * 1024.0)
+    );
+    Ok(0)
+}

@@ -1,0 +1,20 @@
+//! The command line: `args` holds what was typed, `resolve` folds it into the scene, and each
+//! command has its own file.
+
+mod args;
+mod bake;
+mod bench;
+mod inspect;
+mod resolve;
+
+use clap::Parser;
+
+/// Parses the command line and runs the command; returns the exit code.
+pub fn run() -> anyhow::Result<i32> {
+    let cli = args::Cli::parse();
+    match cli.command {
+        args::Command::Bake(a) => bake::run(a),
+        args::Command::Inspect(a) => inspect::run(a),
+        args::Command::Bench(a) => bench::run(a),
+    }
+}

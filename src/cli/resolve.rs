@@ -1,0 +1,50 @@
+//! Folds what was typed into the scene: loads the file (or the embedded default) and applies the
+//! command-line overrides, which are validated like the scene's own fields.
+
+use super::args::{SceneArgs, SolverArg};
+use drape::scene::{self, Scene, SolverKind};
+use drape::Error;
+
+/// The scene to run and the name of its source.
+pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
+    let (mut scene, file) = match &args.scene {
+        Some(path) => (Scene::load(path)?, path.display().to_string()),
+        None => (
+            Scene::default_scene(),
+            scene::DEFAULT_SCENE_FILE.to_string(),
+        ),
+    };
+    if let Some(s) = args.solver {
+        scene.solver.kind = match s {
+            SolverArg::Gs => SolverKind::Gs,
+            SolverArg::Jacobi => SolverKind::Jacobi,
+            SolverArg::Rbgs => SolverKind::Rbgs,
+            SolverArg::Pbd => SolverKind::Pbd,
+        };
+    }
+    let flag = |flag: &str, e: Error| match e {
+        Error::InvalidField { reason, .. } => Error::InvalidArgument {
+            flag: flag.to_string(),
+            reason,
+        },
+        other => other,
+    };
+    if let Some(n) = args.frames {
+        scene.frames = n;
+        scene::validate(&scene, &file).map_err(|e| flag("--frames", e))?;
+    }
+    if let Some(n) = args.iterations {
+        scene.solver.iterations = n;
+        scene::validate(&scene, &file).map_err(|e| flag("--iterations", e))?;
+    }
+    if let Some(w) = args.omega {
+        scene.solver.omega = w;
+        scene::validate(&scene, &file).map_err(|e| flag("--omega", e))?;
+    }
+    if let Some(n) = args.substeps {
+        scene.substeps = Some(n);
+        scene.timestep = None;
+        scene::validate(&scene, &file).map_err(|e| flag("--substeps", e))?;
+    }
+    Ok((scene, file))
+}

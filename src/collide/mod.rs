@@ -1,0 +1,133 @@
+//! Collisions with analytic shapes (plane, sphere), resolved by projection after each solve.
+//!
+//! A particle closer to a surface than its contact radius (half the cloth thickness) is pushed out
+//! along the surface normal, then Coulomb friction acts on its motion over the step: tangential
+//! motion smaller than μ × the push is removed (static friction), larger motion is shortened by
+//! μ × the push (kinetic friction), as position-based friction does (Macklin et al. 2014, §6.1).
+
+use crate::scene::{ColliderKind, ColliderSpec};
+use crate::sim::model::Model;
+use glam::{Vec3, Vec4};
+use rayon::prelude::*;
+
+/// An analytic shape.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shape {
+    /// Solid half-space below the plane n·x = offset (n unit length).
+    Plane { normal: Vec3, offset: f32 },
+    /// Solid ball.
+    Sphere { center: Vec3, radius: f32 },
+}
+
+/// A static collider with its friction coefficient.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Collider {
+    pub shape: Shape,
+    pub friction: f32,
+}
+
+/// Particles inside one collider at one instant.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Penetration {
+    /// Particles whose centre lies inside the solid (signed distance below zero).
+    pub inside: usize,
+    /// Deepest such particle below the surface [m] (0 when none).
+    pub deepest: f32,
+}
+
+impl Collider {
+    /// Builds a collider from its (validated) scene spec.
+    pub fn from_spec(spec: &ColliderSpec) -> Collider {
+        let shape = match spec.kind {
+            ColliderKind::Plane => {
+                let normal = Vec3::from(spec.normal.unwrap_or([0.0, 1.0, 0.0])).normalize();
+                let point = Vec3::from(spec.point.unwrap_or([0.0; 3]));
+                Shape::Plane {
+                    normal,
+                    offset: normal.dot(point),
+                }
+            }
+            ColliderKind::Sphere => Shape::Sphere {
+                center: Vec3::from(spec.center.expect("validated")),
+                radius: spec.radius.expect("validated"),
+            },
+        };
+        Collider {
+            shape,
+            friction: spec.friction,
+        }
+    }
+
+    /// Signed distance of `p` from the surface (negative inside) and the outward normal there.
+    #[inline]
+    pub fn distance(&self, p: Vec3) -> (f32, Vec3) {
+        match self.shape {
+            Shape::Plane { normal, offset } => (normal.dot(p) - offset, normal),
+            Shape::Sphere { center, radius } => {
+                let d = p - center;
+                let len = d.length();
+                let n = if len > 1e-12 { d / len } else { Vec3::Y };
+                (len - radius, n)
+            }
+        }
+    }
+
+    /// Pushes `q` out to `radius` from the surface and applies friction to its motion since
+    /// `previous`. Returns the corrected position.
+    #[inline]
+    pub fn resolve(&self, q: Vec4, previous: Vec4, radius: f32) -> Vec4 {
+        let p = q.truncate();
+        let (dist, n) = self.distance(p);
+        let push = radius - dist;
+        if push <= 0.0 {
+            return q;
+        }
+        let p = p + n * push;
+        let motion = p - previous.truncate();
+        let tangent = motion - n * motion.dot(n);
+        let t_len = tangent.length();
+        let limit = self.friction * push;
+        let p = if t_len <= limit {
+            p - tangent
+        } else {
+            p - tangent * (limit / t_len)
+        };
+        p.extend(0.0)
+    }
+}
+
+/// Resolves every free particle against every collider, in parallel (each particle alone).
+pub fn resolve_all(colliders: &[Collider], model: &Model, q: &mut [Vec4], previous: &[Vec4]) {
+    if colliders.is_empty() {
+        return;
+    }
+    q.par_iter_mut()
+        .with_min_len(crate::sim::solver::PARALLEL_CHUNK)
+        .enumerate()
+        .for_each(|(i, qi)| {
+            if model.inv_mass[i] == 0.0 {
+                return;
+            }
+            for c in colliders {
+                *qi = c.resolve(*qi, previous[i], model.contact_radius[i]);
+            }
+        });
+}
+
+/// Penetration of the particles `q` into each collider.
+pub fn penetrations(colliders: &[Collider], q: &[Vec4]) -> Vec<Penetration> {
+    colliders
+        .iter()
+        .map(|c| {
+            let mut p = Penetration::default();
+            for qi in q {
+                let (d, _) = c.distance(qi.truncate());
+                if d < 0.0 {
+                    p.inside += 1;
+                    p.deepest = p.deepest.max(-d);
+                }
+            }
+            p
+        })
+        .collect()
+}

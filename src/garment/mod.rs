@@ -1,0 +1,274 @@
+//! Garments: particles on a regular lattice (the voxel grid of the Red-Black thesis) joined by
+//! springs from a [`Stencil`], coloured for parallel Gauss-Seidel by a [`Colouring`].
+//!
+//! A garment is built in *grid order*: particle k sits at lattice cell k with x varying fastest.
+//! That order is the one exports and reports use; the solver keeps its own colour-sorted order
+//! (see `sim::model`).
+
+pub mod coloring;
+pub mod stencil;
+
+pub use coloring::Colouring;
+pub use stencil::{SpringFamily, Stencil};
+
+use crate::scene::{GarmentKind, GarmentSpec};
+use glam::{EulerRot, Mat3, Vec3};
+
+/// A spring between two particles of one garment (grid-order indices).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spring {
+    pub a: u32,
+    pub b: u32,
+    /// Rest length [m].
+    pub rest: f32,
+    /// Projective Dynamics weight [N/m].
+    pub weight: f32,
+    pub family: SpringFamily,
+}
+
+/// A garment ready to simulate: particles in grid order, springs, colours, pins and mesh faces.
+#[derive(Clone, Debug)]
+pub struct Garment {
+    pub name: String,
+    /// Particles per lattice axis (unused axes are 1).
+    pub dims: [u32; 3],
+    /// Start positions [m], grid order.
+    pub positions: Vec<Vec3>,
+    /// Mass of each particle [kg].
+    pub particle_mass: f32,
+    /// Grid-order indices of pinned particles (sorted, unique).
+    pub pins: Vec<u32>,
+    pub springs: Vec<Spring>,
+    pub stencil: Stencil,
+    pub colouring: Colouring,
+    /// Triangles (counter-clockwise seen from the garment's local +Y), grid-order indices.
+    pub triangles: Vec<[u32; 3]>,
+    /// Texture coordinates, one per particle.
+    pub uvs: Vec<[f32; 2]>,
+    /// Half the cloth thickness [m]: the distance kept from collider surfaces.
+    pub contact_radius: f32,
+    /// Long-range attachments: (particle, pin, rest distance), grid-order indices.
+    pub tethers: Vec<Tether>,
+}
+
+/// A long-range attachment: `particle` may be no farther than `rest` from pinned particle `pin`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tether {
+    pub particle: u32,
+    pub pin: u32,
+    /// Rest distance [m]: the straight-line distance in the flat rest shape, which is the
+    /// geodesic distance for sheets and ropes.
+    pub rest: f32,
+}
+
+/// Most tethers per particle: its nearest pins.
+pub const TETHERS_PER_PARTICLE: usize = 2;
+
+impl Garment {
+    /// Builds a procedural garment from its scene spec (validated before).
+    pub fn build(name: String, spec: &GarmentSpec) -> Garment {
+        let dims = match spec.kind {
+            GarmentKind::Sheet => [spec.resolution[0], spec.resolution[1], 1],
+            GarmentKind::Rope => [spec.resolution[0], 1, 1],
+        };
+        let spacing: Vec<f32> = (0..spec.size.len())
+            .map(|a| spec.size[a] / (spec.resolution[a] - 1) as f32)
+            .collect();
+        let count = dims.iter().product::<u32>() as usize;
+        let rotation = Mat3::from_euler(
+            EulerRot::XYZ,
+            spec.rotation[0].to_radians(),
+            spec.rotation[1].to_radians(),
+            spec.rotation[2].to_radians(),
+        );
+        let centre = Vec3::from(spec.position);
+        let mut positions = Vec::with_capacity(count);
+        let mut uvs = Vec::with_capacity(count);
+        for k in 0..count as u32 {
+            let [x, y, _] = cell_of(dims, k);
+            let u = x as f32 / (dims[0] - 1) as f32;
+            let v = if dims[1] > 1 {
+                y as f32 / (dims[1] - 1) as f32
+            } else {
+                0.0
+            };
+            // Local frame: grid axis 0 along +X, grid axis 1 along +Z (a horizontal sheet).
+            let local = Vec3::new(
+                (u - 0.5) * spec.size[0],
+                0.0,
+                if dims[1] > 1 {
+                    (v - 0.5) * spec.size[1]
+                } else {
+                    0.0
+                },
+            );
+            positions.push(centre + rotation * (local * spec.initial_stretch));
+            uvs.push([u, v]);
+        }
+        let stencil = Stencil::new(dims, spec.stiffness.shear > 0.0, spec.stiffness.bend > 0.0);
+        let colouring = Colouring::derive(&stencil);
+        let springs = build_springs(dims, &stencil, &spacing, &spec.stiffness);
+        let mut pins: Vec<u32> = spec
+            .pins
+            .iter()
+            .map(|pin| {
+                let mut cell = [0u32; 3];
+                for (a, &c) in pin.iter().enumerate() {
+                    let n = dims[a] as i64;
+                    cell[a] = if c < 0 { (n + c) as u32 } else { c as u32 };
+                }
+                index_of(dims, cell)
+            })
+            .collect();
+        pins.sort_unstable();
+        pins.dedup();
+        let tethers = if spec.tethers {
+            let rest: Vec<Vec3> = (0..count as u32)
+                .map(|k| {
+                    let c = cell_of(dims, k);
+                    Vec3::new(
+                        c[0] as f32 * spacing[0],
+                        c[1] as f32 * spacing.get(1).copied().unwrap_or(0.0),
+                        0.0,
+                    )
+                })
+                .collect();
+            build_tethers(&rest, &pins)
+        } else {
+            Vec::new()
+        };
+        Garment {
+            name,
+            dims,
+            positions,
+            particle_mass: spec.mass / count as f32,
+            pins,
+            springs,
+            stencil,
+            colouring,
+            triangles: sheet_triangles(dims),
+            uvs,
+            contact_radius: spec.thickness * 0.5,
+            tethers,
+        }
+    }
+
+    /// Number of particles.
+    pub fn particle_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of colours the solver sweeps per Gauss-Seidel iteration.
+    pub fn colour_count(&self) -> u32 {
+        self.colouring.modulus
+    }
+
+    /// The colour of particle `k` (grid order).
+    pub fn colour_of(&self, k: u32) -> u32 {
+        self.colouring.colour(cell_of(self.dims, k))
+    }
+
+    /// Number of springs of one family.
+    pub fn spring_count(&self, family: SpringFamily) -> usize {
+        self.springs.iter().filter(|s| s.family == family).count()
+    }
+}
+
+/// Lattice cell of grid-order index `k` (x fastest).
+pub fn cell_of(dims: [u32; 3], k: u32) -> [u32; 3] {
+    [
+        k % dims[0],
+        (k / dims[0]) % dims[1],
+        k / (dims[0] * dims[1]),
+    ]
+}
+
+/// Grid-order index of lattice cell `cell`.
+pub fn index_of(dims: [u32; 3], cell: [u32; 3]) -> u32 {
+    cell[0] + dims[0] * (cell[1] + dims[1] * cell[2])
+}
+
+fn build_springs(
+    dims: [u32; 3],
+    stencil: &Stencil,
+    spacing: &[f32],
+    stiffness: &crate::scene::Stiffness,
+) -> Vec<Spring> {
+    let count = dims.iter().product::<u32>();
+    let mut springs = Vec::new();
+    for (d, family) in &stencil.offsets {
+        let rest = (0..3)
+            .map(|a| d[a] as f32 * spacing.get(a).copied().unwrap_or(0.0))
+            .map(|x| x * x)
+            .sum::<f32>()
+            .sqrt();
+        let weight = match family {
+            SpringFamily::Stretch => stiffness.stretch,
+            SpringFamily::Shear => stiffness.shear,
+            SpringFamily::Bend => stiffness.bend,
+        };
+        for k in 0..count {
+            let c = cell_of(dims, k);
+            let n: Option<Vec<u32>> = (0..3)
+                .map(|a| {
+                    let v = c[a] as i64 + d[a] as i64;
+                    (v >= 0 && v < dims[a] as i64).then_some(v as u32)
+                })
+                .collect();
+            if let Some(n) = n {
+                springs.push(Spring {
+                    a: k,
+                    b: index_of(dims, [n[0], n[1], n[2]]),
+                    rest,
+                    weight,
+                    family: *family,
+                });
+            }
+        }
+    }
+    springs
+}
+
+/// Tethers from every free particle to its nearest pins (at most [`TETHERS_PER_PARTICLE`]).
+fn build_tethers(rest: &[Vec3], pins: &[u32]) -> Vec<Tether> {
+    let mut tethers = Vec::new();
+    if pins.is_empty() {
+        return tethers;
+    }
+    for k in 0..rest.len() as u32 {
+        if pins.binary_search(&k).is_ok() {
+            continue;
+        }
+        let mut near: Vec<(f32, u32)> = pins
+            .iter()
+            .map(|&p| (rest[k as usize].distance(rest[p as usize]), p))
+            .collect();
+        near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for &(d, p) in near.iter().take(TETHERS_PER_PARTICLE) {
+            tethers.push(Tether {
+                particle: k,
+                pin: p,
+                rest: d,
+            });
+        }
+    }
+    tethers
+}
+
+/// Two triangles per grid quad of a sheet; none for a rope.
+fn sheet_triangles(dims: [u32; 3]) -> Vec<[u32; 3]> {
+    if dims[1] < 2 {
+        return Vec::new();
+    }
+    let mut tris = Vec::with_capacity(2 * (dims[0] as usize - 1) * (dims[1] as usize - 1));
+    for y in 0..dims[1] - 1 {
+        for x in 0..dims[0] - 1 {
+            let i = index_of(dims, [x, y, 0]);
+            let (right, up, diag) = (i + 1, i + dims[0], i + dims[0] + 1);
+            // Grid axis 1 runs along +Z, so (x, z) winding i → up → right faces +Y.
+            tris.push([i, up, right]);
+            tris.push([right, up, diag]);
+        }
+    }
+    tris
+}

@@ -1,0 +1,25 @@
+//! drape bakes garment animation: cloth as particles on a grid joined by springs, simulated with
+//! Projective Dynamics solved by (red-black) Gauss-Seidel, and written out frame by frame.
+//!
+//! The stages, in the order data flows through them (and the order `sim::Simulation::substep`
+//! runs the per-step ones):
+//! 1. [`scene`]: read and validate the scene file (defaults fill everything left out).
+//! 2. [`garment`]: build each garment's particle grid, springs and colouring.
+//! 3. [`sim`]: lay the garments out for the solver ([`sim::Model`], [`sim::State`]) and step:
+//!    predict (Verlet) → solve (Projective Dynamics / PBD) → [`collide`] → commit.
+//! 4. [`export`]: write each frame (OBJ sequences) into a staging folder.
+//! 5. [`report`]: `report.json` with counts, timings, accuracy and stability.
+//!
+//! [`bake`] runs the whole pipeline; [`bench`] times the solvers.
+
+pub mod bake;
+pub mod bench;
+pub mod collide;
+pub mod error;
+pub mod export;
+pub mod garment;
+pub mod report;
+pub mod scene;
+pub mod sim;
+
+pub use error::{Error, Result};

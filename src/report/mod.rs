@@ -1,0 +1,133 @@
+//! `report.json`: what a bake did and how well, for people and for pipelines.
+//! The schema is versioned ([`SCHEMA`]) and documented in `docs/report-format.md`; fields are only
+//! ever added within one version.
+
+use crate::collide::Penetration;
+use crate::scene::{IntegratorKind, SolverSettings};
+use serde::Serialize;
+
+/// The schema identifier written into every report.
+pub const SCHEMA: &str = "drape.report/1";
+
+/// A bake's report.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub schema: &'static str,
+    pub drape_version: &'static str,
+    pub scene: String,
+    pub scene_file: String,
+    pub backend: Backend,
+    pub solver: SolverSettings,
+    pub integrator: IntegratorKind,
+    pub fps: f32,
+    pub substeps: u32,
+    pub step_seconds: f32,
+    pub particles: usize,
+    pub springs: usize,
+    pub garments: Vec<GarmentReport>,
+    pub frames_requested: u32,
+    pub frames_baked: u32,
+    pub ms_per_frame: Timing,
+    /// Metrics after the last baked frame.
+    pub last_frame: Option<FrameMetrics>,
+    /// The frame with the largest structural strain.
+    pub worst_frame: Option<FrameMetrics>,
+    /// Deepest penetration of each collider over the whole bake.
+    pub worst_penetrations: Vec<ColliderPenetration>,
+    pub stable: bool,
+    pub failure: Option<Failure>,
+    /// Total squared error after every sweep, one list per frame (when the scene asks for it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residuals: Option<Vec<Vec<f64>>>,
+    pub outputs: Outputs,
+}
+
+/// Where the simulation ran.
+#[derive(Clone, Debug, Serialize)]
+pub struct Backend {
+    /// `"cpu"`.
+    pub kind: &'static str,
+    /// Worker threads of the CPU solver.
+    pub threads: usize,
+}
+
+/// One garment's counts.
+#[derive(Clone, Debug, Serialize)]
+pub struct GarmentReport {
+    pub name: String,
+    pub particles: usize,
+    pub pinned: usize,
+    pub stretch_springs: usize,
+    pub shear_springs: usize,
+    pub bend_springs: usize,
+    pub colours: u32,
+}
+
+/// Wall-clock time of the simulation per frame [ms] (file writing excluded).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Timing {
+    pub median: f64,
+    pub max: f64,
+    pub mean: f64,
+    pub total: f64,
+}
+
+impl Timing {
+    /// Statistics of per-frame times [ms].
+    pub fn of(frame_ms: &[f64]) -> Timing {
+        if frame_ms.is_empty() {
+            return Timing::default();
+        }
+        let mut sorted = frame_ms.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let total: f64 = sorted.iter().sum();
+        let mid = sorted.len() / 2;
+        let median = if sorted.len() % 2 == 1 {
+            sorted[mid]
+        } else {
+            0.5 * (sorted[mid - 1] + sorted[mid])
+        };
+        Timing {
+            median,
+            max: *sorted.last().unwrap_or(&0.0),
+            mean: total / sorted.len() as f64,
+            total,
+        }
+    }
+}
+
+/// Accuracy after one frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameMetrics {
+    /// 1-based frame number.
+    pub frame: u32,
+    /// Σ (|q_a − q_b| − L)² over structural springs [m²].
+    pub total_squared_error: f64,
+    pub mean_strain: f64,
+    pub max_strain: f64,
+    pub penetrations: Vec<ColliderPenetration>,
+}
+
+/// Penetration into one collider.
+#[derive(Clone, Debug, Serialize)]
+pub struct ColliderPenetration {
+    /// Index in the scene's `colliders`.
+    pub collider: usize,
+    #[serde(flatten)]
+    pub penetration: Penetration,
+}
+
+/// Why a bake stopped early.
+#[derive(Clone, Debug, Serialize)]
+pub struct Failure {
+    /// The frame at which instability was detected (1-based).
+    pub frame: u32,
+    pub reason: String,
+}
+
+/// Files written, relative to the bake folder.
+#[derive(Clone, Debug, Serialize)]
+pub struct Outputs {
+    /// Folder of the OBJ sequences, if written.
+    pub obj: Option<String>,
+}

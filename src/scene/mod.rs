@@ -1,0 +1,364 @@
+//! Scene files: what to simulate, in JSON (serde). Units are metres, seconds and kilograms; Y is up.
+//!
+//! A scene names only what it needs: every field has a documented default (see
+//! `docs/scene-format.md`), so a hanging cloth is a dozen lines. Unknown fields are rejected, so a
+//! typo never silently falls back to a default. Parsing reports file, line, column and the JSON path
+//! of the field; [`validate`] then rejects impossible values, naming the field and the reason.
+
+mod validate;
+
+pub use validate::validate;
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The scene `drape bake` runs when no scene file is given (scene H, the hanging cloth).
+pub const DEFAULT_SCENE: &str = include_str!("../../scenes/hanging_cloth.json");
+/// The name shown for the embedded default scene in messages and reports.
+pub const DEFAULT_SCENE_FILE: &str = "<embedded hanging_cloth.json>";
+
+/// A whole scene: timing, forces, solver, garments, colliders and outputs.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scene {
+    /// Name used in reports. Default `"scene"`.
+    pub name: String,
+    /// Frames per second of the bake [1/s]. Default 60.
+    pub fps: f32,
+    /// Number of frames to bake. Default 120 (2 s at 60 fps).
+    pub frames: u32,
+    /// Simulation steps per frame. Default 10 when `timestep` is absent. Give one or the other.
+    pub substeps: Option<u32>,
+    /// Largest simulation step [s]; drape takes the smallest whole number of substeps per frame
+    /// whose step is no larger. Exclusive with `substeps`.
+    pub timestep: Option<f32>,
+    /// Gravity [m/s²]. Default `[0, -9.81, 0]`.
+    pub gravity: [f32; 3],
+    /// Velocity damping rate [1/s]: velocities decay as exp(-damping · t). Default 0.5.
+    pub damping: f32,
+    /// Time integration. Default `"verlet"`.
+    pub integrator: IntegratorKind,
+    /// Constraint solver settings.
+    pub solver: SolverSettings,
+    /// The garments (at least one).
+    pub garments: Vec<GarmentSpec>,
+    /// Static analytic colliders. Default none.
+    pub colliders: Vec<ColliderSpec>,
+    /// What to write.
+    pub output: OutputSpec,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Scene {
+            name: "scene".into(),
+            fps: 60.0,
+            frames: 120,
+            substeps: None,
+            timestep: None,
+            gravity: [0.0, -9.81, 0.0],
+            damping: 0.5,
+            integrator: IntegratorKind::Verlet,
+            solver: SolverSettings::default(),
+            garments: Vec::new(),
+            colliders: Vec::new(),
+            output: OutputSpec::default(),
+        }
+    }
+}
+
+/// How particles move between solves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorKind {
+    /// Position Verlet with damping (thesis algorithm 2): inertia + gravity, then the solver.
+    Verlet,
+    /// No time integration: only the constraint solver moves particles (scene E).
+    None,
+}
+
+/// Which constraint solver projects the particles back onto their constraints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Projective Dynamics, sequential Gauss-Seidel in grid order (the CPU reference).
+    Gs,
+    /// Projective Dynamics, Jacobi (every particle from the previous iterate).
+    Jacobi,
+    /// Projective Dynamics, multi-colour (red-black) Gauss-Seidel, colours in parallel.
+    Rbgs,
+    /// Position Based Dynamics, Jacobi with averaging (thesis algorithm 3).
+    Pbd,
+}
+
+impl SolverKind {
+    /// The name used in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Gs => "gs",
+            SolverKind::Jacobi => "jacobi",
+            SolverKind::Rbgs => "rbgs",
+            SolverKind::Pbd => "pbd",
+        }
+    }
+}
+
+/// Solver settings.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSettings {
+    /// Solver. Default `"rbgs"`.
+    pub kind: SolverKind,
+    /// Outer iterations per substep: each refreshes the spring directions (the local step).
+    /// Default 10.
+    pub iterations: u32,
+    /// Inner iterations per outer iteration: sweeps of the global solve with fixed directions.
+    /// Default 1. Ignored by `pbd`.
+    pub inner_iterations: u32,
+    /// Successive over-relaxation factor ω in (0, 2). Default 1 (plain Gauss-Seidel/Jacobi).
+    pub omega: f32,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            kind: SolverKind::Rbgs,
+            iterations: 10,
+            inner_iterations: 1,
+            omega: 1.0,
+        }
+    }
+}
+
+/// Shape of a procedural garment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GarmentKind {
+    /// A rectangular sheet: `resolution` [nu, nv] particles, `size` [u, v] metres, flat in its
+    /// local XZ plane (horizontal before rotation), u along +X, v along +Z.
+    Sheet,
+    /// A rope: `resolution` [n] particles, `size` [length] metres along local +X.
+    Rope,
+}
+
+/// One garment: a particle grid with distance constraints.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GarmentSpec {
+    /// Name used for output files. Default `"garment<index>"`.
+    pub name: Option<String>,
+    /// Shape. Default `"sheet"`.
+    pub kind: GarmentKind,
+    /// Particles along each grid axis: [nu, nv] for a sheet, [n] for a rope. Default [32, 32].
+    pub resolution: Vec<u32>,
+    /// Rest size [m] along each grid axis, same length as `resolution`. Default [1, 1].
+    pub size: Vec<f32>,
+    /// Total mass [kg], spread evenly over the particles. Default 0.1.
+    pub mass: f32,
+    /// Centre of the garment [m]. Default [0, 1, 0].
+    pub position: [f32; 3],
+    /// Rotation, Euler angles in degrees applied in X, Y, Z order. Default [0, 0, 0].
+    pub rotation: [f32; 3],
+    /// Pinned particles as grid coordinates, one entry per grid axis; negative counts from the
+    /// end (-1 is the last). Default none.
+    pub pins: Vec<Vec<i64>>,
+    /// Spring stiffness [N/m] per spring family.
+    pub stiffness: Stiffness,
+    /// Initial spacing as a multiple of the rest spacing (scene E lays its cloth at 5). Default 1.
+    pub initial_stretch: f32,
+    /// Cloth thickness [m]: particles keep thickness/2 from collider surfaces. Default 0.005.
+    pub thickness: f32,
+    /// Long-range attachments (Kim, Chentanez and Müller 2012): every free particle stays within
+    /// its rest distance of its two nearest pins, so a pinned cloth cannot stretch away from its
+    /// pins however few iterations the solver runs. Default true; no effect without pins.
+    pub tethers: bool,
+}
+
+impl Default for GarmentSpec {
+    fn default() -> Self {
+        GarmentSpec {
+            name: None,
+            kind: GarmentKind::Sheet,
+            resolution: vec![32, 32],
+            size: vec![1.0, 1.0],
+            mass: 0.1,
+            position: [0.0, 1.0, 0.0],
+            rotation: [0.0; 3],
+            pins: Vec::new(),
+            stiffness: Stiffness::default(),
+            initial_stretch: 1.0,
+            thickness: 0.005,
+            tethers: true,
+        }
+    }
+}
+
+/// Projective Dynamics spring weights [N/m]. Shear and bend springs exist only when their
+/// stiffness is above zero (Provot's mass-spring model: shear joins diagonal neighbours, bend joins
+/// neighbours two apart along an axis).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Stiffness {
+    /// Structural (axis neighbour) springs. Default 10 000 N/m: stiff enough that cloth barely
+    /// stretches under its own weight, while Gauss-Seidel still converges in a few iterations.
+    pub stretch: f32,
+    /// Shear (diagonal) springs. Default 0 (off).
+    pub shear: f32,
+    /// Bend (two apart) springs. Default 0 (off).
+    pub bend: f32,
+}
+
+impl Default for Stiffness {
+    fn default() -> Self {
+        Stiffness {
+            stretch: 10_000.0,
+            shear: 0.0,
+            bend: 0.0,
+        }
+    }
+}
+
+/// Shape of an analytic collider.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ColliderKind {
+    /// Half-space: everything below the plane through `point` with normal `normal` is solid.
+    Plane,
+    /// Solid sphere of `radius` around `center`.
+    Sphere,
+}
+
+/// A static analytic collider. Fields that do not belong to `kind` are rejected by validation.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderSpec {
+    /// `"plane"` or `"sphere"`. Required.
+    pub kind: ColliderKind,
+    /// Plane: a point on the plane [m]. Default the origin.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<[f32; 3]>,
+    /// Plane: outward normal (normalised by drape). Default [0, 1, 0].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<[f32; 3]>,
+    /// Sphere: centre [m]. Required for spheres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f32; 3]>,
+    /// Sphere: radius [m]. Required for spheres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    /// Coulomb friction coefficient against this collider. Default 0.5.
+    #[serde(default = "default_friction")]
+    pub friction: f32,
+}
+
+fn default_friction() -> f32 {
+    0.5
+}
+
+/// What a bake writes besides `report.json`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSpec {
+    /// Write `obj/<garment>_<frame>.obj`. Default true.
+    pub obj: bool,
+    /// Record the total squared error after every solver iteration in the report. Default false.
+    pub residuals: bool,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            obj: true,
+            residuals: false,
+        }
+    }
+}
+
+impl Scene {
+    /// Reads, parses and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        Scene::parse(&text, &path.display().to_string())
+    }
+
+    /// The embedded default scene.
+    pub fn default_scene() -> Scene {
+        Scene::parse(DEFAULT_SCENE, DEFAULT_SCENE_FILE).expect("the embedded scene is valid")
+    }
+
+    /// Parses and validates scene JSON; `file` names the source in error messages.
+    pub fn parse(text: &str, file: &str) -> Result<Scene> {
+        let mut de = serde_json::Deserializer::from_str(text);
+        let scene: Scene = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner();
+            Error::SceneSyntax {
+                file: file.to_string(),
+                line: inner.line(),
+                column: inner.column(),
+                path: if path == "." {
+                    "(top level)".into()
+                } else {
+                    path
+                },
+                reason: strip_position(&inner.to_string()),
+            }
+        })?;
+        de.end().map_err(|e| Error::SceneSyntax {
+            file: file.to_string(),
+            line: e.line(),
+            column: e.column(),
+            path: "(top level)".into(),
+            reason: strip_position(&e.to_string()),
+        })?;
+        validate(&scene, file)?;
+        Ok(scene)
+    }
+
+    /// Substeps per frame, from `substeps` or `timestep` (validated before).
+    pub fn substeps_per_frame(&self) -> u32 {
+        match (self.substeps, self.timestep) {
+            (Some(n), _) => n,
+            (None, Some(dt)) => ((1.0 / (self.fps * dt)) - 1e-4).ceil().max(1.0) as u32,
+            (None, None) => 10,
+        }
+    }
+
+    /// Length of one simulation step [s].
+    pub fn step_seconds(&self) -> f32 {
+        1.0 / (self.fps * self.substeps_per_frame() as f32)
+    }
+
+    /// The name of garment `index`, its own or the default `garment<index>`.
+    pub fn garment_name(&self, index: usize) -> String {
+        self.garments[index]
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("garment{index}"))
+    }
+}
+
+/// serde_json appends " at line L column C" to its messages; drape prints the position itself.
+fn strip_position(message: &str) -> String {
+    match message.rfind(" at line ") {
+        Some(i) => message[..i].to_string(),
+        None => message.to_string(),
+    }
+}
+
+/// The reference scenes of `shared/reference/scenes.md`, embedded so benches and tests need no
+/// files (the same text as `scenes/<name>.json`).
+pub mod reference {
+    /// Scene E: a 100 × 100 cloth laid out at 5 × its rest spacing; only the solver moves it.
+    pub const ENLARGED_CLOTH: &str = include_str!("../../scenes/enlarged_cloth.json");
+    /// Scene H: a 100 × 100 cloth pinned at two corners, hanging for 2 s.
+    pub const HANGING_CLOTH: &str = include_str!("../../scenes/hanging_cloth.json");
+    /// Scene S: a 64 × 64 cloth dropped onto a sphere.
+    pub const SPHERE_DRAPE: &str = include_str!("../../scenes/sphere_drape.json");
+
+    /// Parses one of the embedded reference scenes.
+    pub fn load(text: &str, name: &str) -> super::Scene {
+        super::Scene::parse(text, name).expect("reference scenes are valid")
+    }
+}

@@ -1,0 +1,208 @@
+//! Rejects impossible scene values, naming the field (as a JSON path) and the reason.
+
+use super::{ColliderKind, GarmentKind, GarmentSpec, Scene};
+use crate::error::{Error, Result};
+
+/// The most particles one scene may hold (about 3 GiB of solver state): a guard against a typo
+/// such as a resolution of 100000 asking for all the machine's memory.
+pub const MAX_PARTICLES: u64 = 50_000_000;
+
+/// Checks every value of a parsed scene; `file` names the source in the error.
+pub fn validate(scene: &Scene, file: &str) -> Result<()> {
+    let fail = |field: String, reason: String| Error::InvalidField {
+        file: file.to_string(),
+        field,
+        reason,
+    };
+    positive(scene.fps).map_err(|r| fail("fps".into(), r))?;
+    if scene.frames == 0 {
+        return Err(fail("frames".into(), "must be at least 1".into()));
+    }
+    match (scene.substeps, scene.timestep) {
+        (Some(_), Some(_)) => {
+            return Err(fail(
+                "timestep".into(),
+                "give either substeps or timestep, not both".into(),
+            ))
+        }
+        (Some(0), None) => return Err(fail("substeps".into(), "must be at least 1".into())),
+        (None, Some(dt)) => positive(dt).map_err(|r| fail("timestep".into(), r))?,
+        _ => {}
+    }
+    finite3(scene.gravity).map_err(|r| fail("gravity".into(), r))?;
+    non_negative(scene.damping).map_err(|r| fail("damping".into(), r))?;
+    let solver = &scene.solver;
+    if solver.iterations == 0 {
+        return Err(fail(
+            "solver.iterations".into(),
+            "must be at least 1".into(),
+        ));
+    }
+    if solver.inner_iterations == 0 {
+        return Err(fail(
+            "solver.inner_iterations".into(),
+            "must be at least 1".into(),
+        ));
+    }
+    if !(solver.omega > 0.0 && solver.omega < 2.0) {
+        return Err(fail(
+            "solver.omega".into(),
+            format!(
+                "must lie in (0, 2) for over-relaxation to converge (got {})",
+                solver.omega
+            ),
+        ));
+    }
+    if scene.garments.is_empty() {
+        return Err(fail(
+            "garments".into(),
+            "a scene needs at least one garment".into(),
+        ));
+    }
+    let mut names = std::collections::HashSet::new();
+    let mut particles = 0u64;
+    for (i, g) in scene.garments.iter().enumerate() {
+        let at = |f: &str| format!("garments[{i}].{f}");
+        particles += validate_garment(g).map_err(|(f, r)| fail(at(f), r))?;
+        let name = scene.garment_name(i);
+        if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+            return Err(fail(
+                at("name"),
+                format!("{name:?} cannot name output files (empty, a path, or hidden)"),
+            ));
+        }
+        if !names.insert(name.clone()) {
+            return Err(fail(
+                at("name"),
+                format!("{name:?} is used by two garments"),
+            ));
+        }
+    }
+    if particles > MAX_PARTICLES {
+        return Err(fail(
+            "garments".into(),
+            format!("{particles} particles in all is more than drape's limit of {MAX_PARTICLES}"),
+        ));
+    }
+    for (i, c) in scene.colliders.iter().enumerate() {
+        validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
+    }
+    Ok(())
+}
+
+/// Checks one garment; returns its particle count, or (field, reason).
+fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, String)> {
+    let axes = match g.kind {
+        GarmentKind::Sheet => 2,
+        GarmentKind::Rope => 1,
+    };
+    let kind = format!("{:?}", g.kind).to_lowercase();
+    if g.resolution.len() != axes {
+        return Err((
+            "resolution",
+            format!("a {kind} needs {axes} values, got {}", g.resolution.len()),
+        ));
+    }
+    if let Some(&n) = g.resolution.iter().find(|&&n| n < 2) {
+        return Err((
+            "resolution",
+            format!("needs at least 2 particles per axis, got {n}"),
+        ));
+    }
+    if g.size.len() != axes {
+        return Err((
+            "size",
+            format!("a {kind} needs {axes} values, got {}", g.size.len()),
+        ));
+    }
+    for &s in &g.size {
+        positive(s).map_err(|r| ("size", r))?;
+    }
+    positive(g.mass).map_err(|r| ("mass", r))?;
+    finite3(g.position).map_err(|r| ("position", r))?;
+    finite3(g.rotation).map_err(|r| ("rotation", r))?;
+    positive(g.initial_stretch).map_err(|r| ("initial_stretch", r))?;
+    non_negative(g.thickness).map_err(|r| ("thickness", r))?;
+    positive(g.stiffness.stretch).map_err(|r| ("stiffness.stretch", r))?;
+    non_negative(g.stiffness.shear).map_err(|r| ("stiffness.shear", r))?;
+    non_negative(g.stiffness.bend).map_err(|r| ("stiffness.bend", r))?;
+    for pin in &g.pins {
+        if pin.len() != axes {
+            return Err(("pins", format!("pin {pin:?} needs {axes} grid coordinates")));
+        }
+        for (&c, &n) in pin.iter().zip(&g.resolution) {
+            if c >= n as i64 || c < -(n as i64) {
+                return Err((
+                    "pins",
+                    format!("pin {pin:?} lies outside the {:?} grid", g.resolution),
+                ));
+            }
+        }
+    }
+    Ok(g.resolution.iter().map(|&n| n as u64).product())
+}
+
+fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'static str, String)> {
+    non_negative(c.friction).map_err(|r| ("friction", r))?;
+    match c.kind {
+        ColliderKind::Plane => {
+            if c.center.is_some() || c.radius.is_some() {
+                return Err((
+                    "center",
+                    "a plane has a point and a normal, not a center or radius".into(),
+                ));
+            }
+            if let Some(p) = c.point {
+                finite3(p).map_err(|r| ("point", r))?;
+            }
+            if let Some(n) = c.normal {
+                finite3(n).map_err(|r| ("normal", r))?;
+                if glam::Vec3::from(n).length() < 1e-6 {
+                    return Err(("normal", "must not be the zero vector".into()));
+                }
+            }
+        }
+        ColliderKind::Sphere => {
+            if c.point.is_some() || c.normal.is_some() {
+                return Err((
+                    "point",
+                    "a sphere has a center and a radius, not a point or normal".into(),
+                ));
+            }
+            finite3(
+                c.center
+                    .ok_or(("center", "a sphere needs a center".to_string()))?,
+            )
+            .map_err(|r| ("center", r))?;
+            let r = c
+                .radius
+                .ok_or(("radius", "a sphere needs a radius".to_string()))?;
+            positive(r).map_err(|r| ("radius", r))?;
+        }
+    }
+    Ok(())
+}
+
+fn positive(v: f32) -> std::result::Result<(), String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("must be a finite number above zero (got {v})"))
+    }
+}
+
+fn non_negative(v: f32) -> std::result::Result<(), String> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("must be a finite number, zero or above (got {v})"))
+    }
+}
+
+fn finite3(v: [f32; 3]) -> std::result::Result<(), String> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(format!("must be finite (got {v:?})"))
+    }
+}

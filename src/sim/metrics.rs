@@ -1,0 +1,110 @@
+//! Accuracy and stability metrics, computed in one place and reused by bakes, benches and tests
+//! (definitions: `shared/reference/scenes.md`). Sums run serially in f64 so the same positions
+//! always give the same numbers, whatever the thread count.
+
+use super::model::Model;
+use super::state::State;
+use glam::{Vec3, Vec4};
+
+/// How far the structural springs are from their rest lengths.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ConstraintError {
+    /// Σ over structural springs of (|q_a − q_b| − L)² [m²] (thesis eq. 4.1).
+    pub total_squared_error: f64,
+    /// Mean of |l − L| / L over structural springs.
+    pub mean_strain: f64,
+    /// Largest |l − L| / L over structural springs.
+    pub max_strain: f64,
+}
+
+/// Constraint error of `positions` (storage order) over the model's structural springs.
+pub fn constraint_error(model: &Model, positions: &[Vec4]) -> ConstraintError {
+    let springs = &model.springs[..model.structural_springs];
+    let mut e = ConstraintError::default();
+    for s in springs {
+        let len = (positions[s.a as usize] - positions[s.b as usize]).length() as f64;
+        let rest = s.rest as f64;
+        let err = len - rest;
+        e.total_squared_error += err * err;
+        let strain = err.abs() / rest;
+        e.mean_strain += strain;
+        if strain > e.max_strain || strain.is_nan() {
+            e.max_strain = strain;
+        }
+    }
+    if !springs.is_empty() {
+        e.mean_strain /= springs.len() as f64;
+    }
+    e
+}
+
+/// Energies of a state [J].
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Energy {
+    /// ½ Σ m |v|², v = (x − x_prev) / h.
+    pub kinetic: f64,
+    /// −Σ m g·x (zero at the origin).
+    pub gravitational: f64,
+    /// Σ over all springs of w/2 (|q_a − q_b| − L)².
+    pub elastic: f64,
+}
+
+impl Energy {
+    /// Kinetic + gravitational + elastic.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.gravitational + self.elastic
+    }
+}
+
+/// Energies of `state` for steps of `step` seconds under `gravity`.
+pub fn energy(model: &Model, state: &State, gravity: Vec3, step: f32) -> Energy {
+    let mut e = Energy::default();
+    let g = gravity.as_dvec3();
+    for i in 0..model.particle_count() {
+        let m = model.mass[i] as f64;
+        let x = state.positions[i].truncate().as_dvec3();
+        let v = (x - state.previous[i].truncate().as_dvec3()) / step as f64;
+        e.kinetic += 0.5 * m * v.length_squared();
+        e.gravitational -= m * g.dot(x);
+    }
+    for s in &model.springs {
+        let len = (state.positions[s.a as usize] - state.positions[s.b as usize]).length() as f64;
+        let err = len - s.rest as f64;
+        e.elastic += 0.5 * s.weight as f64 * err * err;
+    }
+    e
+}
+
+/// Why a run counts as unstable (`scenes.md`: non-finite positions, strain above 1, or kinetic
+/// energy above 10 × the potential energy released so far), or `None` while it is stable.
+pub fn instability(
+    state: &State,
+    error: &ConstraintError,
+    energy: &Energy,
+    initial: &Energy,
+    integrating: bool,
+) -> Option<String> {
+    if !state.is_finite() || !error.max_strain.is_finite() {
+        return Some("positions are no longer finite".into());
+    }
+    if !integrating {
+        return None;
+    }
+    if error.max_strain > 1.0 {
+        return Some(format!(
+            "a spring is stretched {:.0} % past its rest length (the limit is 100 %)",
+            error.max_strain * 100.0
+        ));
+    }
+    // Energy released so far: by gravity, and by springs that started stretched (scene E).
+    let released = (initial.gravitational - energy.gravitational).max(0.0)
+        + (initial.elastic - energy.elastic).max(0.0);
+    // A floor of 1 µJ keeps the first steps, which have released almost nothing, from counting.
+    if energy.kinetic > 10.0 * released + 1e-6 {
+        return Some(format!(
+            "kinetic energy {:.3e} J exceeds 10 × the {:.3e} J of potential energy released",
+            energy.kinetic, released
+        ));
+    }
+    None
+}

@@ -1,0 +1,246 @@
+//! The static part of a simulation: particles, springs and colours of every garment, laid out for
+//! the solvers.
+//!
+//! Particles are stored **colour-sorted**: all particles of colour 0 (of every garment), then colour
+//! 1, and so on, each colour contiguous, so a parallel Gauss-Seidel pass over one colour reads and
+//! writes one contiguous range (and a GPU dispatch per colour coalesces). Within a colour, particles
+//! keep garment and grid order. `storage_of` maps the export order (garments one after another, each
+//! in grid order) to storage indices.
+//!
+//! Springs are kept twice: as a list (`springs`, storage indices, for metrics) and as per-particle
+//! adjacency *slots* in compressed rows (`slot_start`), the layout the gather-style solvers read:
+//! for particle i, slots `slot_start[i]..slot_start[i+1]` name each neighbour with the spring's
+//! rest length and weight.
+
+use crate::garment::{Garment, SpringFamily};
+use std::ops::Range;
+
+/// A spring in storage indices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelSpring {
+    pub a: u32,
+    pub b: u32,
+    pub rest: f32,
+    pub weight: f32,
+    pub family: SpringFamily,
+}
+
+/// One spring seen from one of its particles: 12 bytes, read by every gather-style solver.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Slot {
+    /// The other particle (storage index).
+    pub neighbour: u32,
+    /// Rest length [m].
+    pub rest: f32,
+    /// Projective Dynamics weight [N/m].
+    pub weight: f32,
+}
+
+const _: () = assert!(std::mem::size_of::<Slot>() == 12);
+
+/// Where one garment's particles live in export order, and its mesh.
+#[derive(Clone, Debug)]
+pub struct GarmentRange {
+    pub name: String,
+    /// Export-order indices of this garment's particles.
+    pub export: Range<usize>,
+    pub dims: [u32; 3],
+    /// Triangles in garment-local grid indices.
+    pub triangles: Vec<[u32; 3]>,
+    pub uvs: Vec<[f32; 2]>,
+    pub colours: u32,
+    pub stretch_springs: usize,
+    pub shear_springs: usize,
+    pub bend_springs: usize,
+}
+
+/// Static simulation data (everything but positions), in storage order.
+#[derive(Clone, Debug, Default)]
+pub struct Model {
+    /// Particle mass [kg]; pinned particles keep their mass but never move.
+    pub mass: Vec<f32>,
+    /// 1 / mass, or 0 for pinned particles.
+    pub inv_mass: Vec<f32>,
+    /// Distance kept from collider surfaces [m].
+    pub contact_radius: Vec<f32>,
+    /// Storage range of each colour.
+    pub colour_ranges: Vec<Range<usize>>,
+    /// Storage index of each export-order particle.
+    pub storage_of: Vec<u32>,
+    /// Start of each particle's slots; length = particles + 1.
+    pub slot_start: Vec<u32>,
+    /// Every particle's springs as seen from that particle, rows one after another.
+    pub slot: Vec<Slot>,
+    /// All springs, storage indices; the structural ones first.
+    pub springs: Vec<ModelSpring>,
+    /// Number of structural (stretch) springs at the head of `springs`.
+    pub structural_springs: usize,
+    pub garments: Vec<GarmentRange>,
+    /// Long-range attachments, storage indices: (particle, pin, rest distance [m]), sorted by
+    /// particle so a particle's tethers are adjacent.
+    pub tethers: Vec<(u32, u32, f32)>,
+    /// Start of each particle's tethers in `tethers`; length = particles + 1.
+    pub tether_start: Vec<u32>,
+}
+
+impl Model {
+    /// Lays out garments for the solvers.
+    pub fn new(garments: &[Garment]) -> Model {
+        let colours = garments.iter().map(|g| g.colour_count()).max().unwrap_or(1) as usize;
+        // Export order: garments one after another. Bucket every particle by colour.
+        let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); colours];
+        let mut offset = 0;
+        let mut ranges = Vec::new();
+        for g in garments {
+            for k in 0..g.particle_count() {
+                buckets[g.colour_of(k as u32) as usize].push(offset + k);
+            }
+            ranges.push(GarmentRange {
+                name: g.name.clone(),
+                export: offset..offset + g.particle_count(),
+                dims: g.dims,
+                triangles: g.triangles.clone(),
+                uvs: g.uvs.clone(),
+                colours: g.colour_count(),
+                stretch_springs: g.spring_count(SpringFamily::Stretch),
+                shear_springs: g.spring_count(SpringFamily::Shear),
+                bend_springs: g.spring_count(SpringFamily::Bend),
+            });
+            offset += g.particle_count();
+        }
+        let n = offset;
+        let mut storage_of = vec![0u32; n];
+        let mut colour_ranges = Vec::with_capacity(colours);
+        let mut next = 0usize;
+        for bucket in &buckets {
+            colour_ranges.push(next..next + bucket.len());
+            for &e in bucket {
+                storage_of[e] = next as u32;
+                next += 1;
+            }
+        }
+
+        let mut model = Model {
+            mass: vec![0.0; n],
+            inv_mass: vec![0.0; n],
+            contact_radius: vec![0.0; n],
+            colour_ranges,
+            storage_of,
+            garments: ranges,
+            ..Model::default()
+        };
+        let mut springs = Vec::new();
+        for (g, range) in garments.iter().zip(&model.garments) {
+            let base = range.export.start;
+            for k in 0..g.particle_count() {
+                let s = model.storage_of[base + k] as usize;
+                model.mass[s] = g.particle_mass;
+                model.inv_mass[s] = 1.0 / g.particle_mass;
+                model.contact_radius[s] = g.contact_radius;
+            }
+            for &p in &g.pins {
+                model.inv_mass[model.storage_of[base + p as usize] as usize] = 0.0;
+            }
+            for t in &g.tethers {
+                model.tethers.push((
+                    model.storage_of[base + t.particle as usize],
+                    model.storage_of[base + t.pin as usize],
+                    t.rest,
+                ));
+            }
+            for s in &g.springs {
+                springs.push(ModelSpring {
+                    a: model.storage_of[base + s.a as usize],
+                    b: model.storage_of[base + s.b as usize],
+                    rest: s.rest,
+                    weight: s.weight,
+                    family: s.family,
+                });
+            }
+        }
+        // Structural springs first, so metrics read one prefix.
+        springs.sort_by_key(|s| s.family != SpringFamily::Stretch);
+        model.structural_springs = springs
+            .iter()
+            .filter(|s| s.family == SpringFamily::Stretch)
+            .count();
+        model.springs = springs;
+        model.build_slots();
+        model.tethers.sort_by_key(|t| (t.0, t.1));
+        model.tether_start = vec![0; n + 1];
+        for t in &model.tethers {
+            model.tether_start[t.0 as usize + 1] += 1;
+        }
+        for i in 0..n {
+            model.tether_start[i + 1] += model.tether_start[i];
+        }
+        model
+    }
+
+    /// Compressed per-particle adjacency from the spring list; slots of a particle are ordered by
+    /// neighbour index so every solver visits them the same way.
+    fn build_slots(&mut self) {
+        let n = self.mass.len();
+        let mut rows: Vec<Vec<Slot>> = vec![Vec::new(); n];
+        for s in &self.springs {
+            let (rest, weight) = (s.rest, s.weight);
+            rows[s.a as usize].push(Slot {
+                neighbour: s.b,
+                rest,
+                weight,
+            });
+            rows[s.b as usize].push(Slot {
+                neighbour: s.a,
+                rest,
+                weight,
+            });
+        }
+        self.slot_start = Vec::with_capacity(n + 1);
+        self.slot_start.push(0);
+        for row in &mut rows {
+            row.sort_by_key(|r| r.neighbour);
+            self.slot.extend_from_slice(row);
+            self.slot_start.push(self.slot.len() as u32);
+        }
+    }
+
+    /// Number of particles.
+    pub fn particle_count(&self) -> usize {
+        self.mass.len()
+    }
+
+    /// The slots (springs) of particle `i`.
+    #[inline(always)]
+    pub fn slots(&self, i: usize) -> &[Slot] {
+        &self.slot[self.slot_start[i] as usize..self.slot_start[i + 1] as usize]
+    }
+
+    /// True when no spring joins two particles of the same colour (what parallel Gauss-Seidel
+    /// relies on); returns the first offending spring otherwise.
+    pub fn check_colouring(&self) -> Result<(), ModelSpring> {
+        let mut colour = vec![0usize; self.particle_count()];
+        for (c, r) in self.colour_ranges.iter().enumerate() {
+            colour[r.clone()].fill(c);
+        }
+        match self
+            .springs
+            .iter()
+            .find(|s| colour[s.a as usize] == colour[s.b as usize])
+        {
+            Some(s) => Err(*s),
+            None => Ok(()),
+        }
+    }
+
+    /// Bytes the CPU solver holds for this model and its state (for `drape inspect`).
+    pub fn memory_bytes(&self) -> usize {
+        let n = self.particle_count();
+        let slots = self.slot.len();
+        // positions, previous, target, right-hand side, Jacobi buffer: one 16-byte vec4 each;
+        // mass, inverse mass, contact radius, diagonal, slot starts: 4 bytes each.
+        n * (5 * 16 + 5 * 4 + 4)
+            + slots * 12
+            + self.springs.len() * std::mem::size_of::<ModelSpring>()
+    }
+}
