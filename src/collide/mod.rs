@@ -7,8 +7,8 @@
 
 use crate::scene::{ColliderKind, ColliderSpec};
 use crate::sim::model::Model;
+use crate::sim::team::{Member, Shared};
 use glam::{Vec3, Vec4};
-use rayon::prelude::*;
 
 /// An analytic shape.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -96,22 +96,30 @@ impl Collider {
     }
 }
 
-/// Resolves every free particle against every collider, in parallel (each particle alone).
-pub fn resolve_all(colliders: &[Collider], model: &Model, q: &mut [Vec4], previous: &[Vec4]) {
+/// Resolves this thread's share of free particles against every collider (each particle alone).
+pub fn resolve_all(
+    m: &Member,
+    colliders: &[Collider],
+    model: &Model,
+    q: Shared<Vec4>,
+    previous: Shared<Vec4>,
+) {
     if colliders.is_empty() {
         return;
     }
-    q.par_iter_mut()
-        .with_min_len(crate::sim::solver::PARALLEL_CHUNK)
-        .enumerate()
-        .for_each(|(i, qi)| {
-            if model.inv_mass[i] == 0.0 {
-                return;
-            }
+    for i in m.particles(&model.colour_ranges) {
+        if model.inv_mass[i] == 0.0 {
+            continue;
+        }
+        // SAFETY: each index is read and written by its own thread only in this stage.
+        unsafe {
+            let mut qi = q.get(i);
             for c in colliders {
-                *qi = c.resolve(*qi, previous[i], model.contact_radius[i]);
+                qi = c.resolve(qi, previous.get(i), model.contact_radius[i]);
             }
-        });
+            q.set(i, qi);
+        }
+    }
 }
 
 /// Penetration of the particles `q` into each collider.

@@ -3,8 +3,8 @@
 //! free particle towards; pinned particles stay where they are.
 
 use super::model::Model;
+use super::team::{Member, Shared};
 use glam::Vec4;
-use rayon::prelude::*;
 
 /// Per-step constants of the integrator.
 #[derive(Clone, Copy, Debug)]
@@ -24,22 +24,30 @@ impl Verlet {
         }
     }
 
-    /// Predicts every particle: `target` and `x` get the prediction s, `x_prev` the old x.
-    pub fn predict(&self, model: &Model, x: &mut [Vec4], x_prev: &mut [Vec4], target: &mut [Vec4]) {
+    /// Predicts this thread's share of particles: `target` and `x` get the prediction s,
+    /// `x_prev` the old x.
+    pub fn predict(
+        &self,
+        m: &Member,
+        model: &Model,
+        x: Shared<Vec4>,
+        x_prev: Shared<Vec4>,
+        target: Shared<Vec4>,
+    ) {
         let (g, keep) = (self.gravity_step, self.keep);
-        (x, x_prev, target)
-            .into_par_iter()
-            .with_min_len(super::solver::PARALLEL_CHUNK)
-            .zip(model.inv_mass.par_iter())
-            .for_each(|((x, x_prev, s), &inv_mass)| {
-                let old = *x;
-                *s = if inv_mass == 0.0 {
+        for i in m.particles(&model.colour_ranges) {
+            // SAFETY: each index is read and written by its own thread only in this stage.
+            unsafe {
+                let old = x.get(i);
+                let s = if model.inv_mass[i] == 0.0 {
                     old
                 } else {
-                    old + (old - *x_prev) * keep + g
+                    old + (old - x_prev.get(i)) * keep + g
                 };
-                *x_prev = old;
-                *x = *s;
-            });
+                x_prev.set(i, old);
+                x.set(i, s);
+                target.set(i, s);
+            }
+        }
     }
 }

@@ -67,10 +67,10 @@ pub fn energy(model: &Model, state: &State, gravity: Vec3, step: f32) -> Energy 
         e.kinetic += 0.5 * m * v.length_squared();
         e.gravitational -= m * g.dot(x);
     }
-    for s in &model.springs {
+    for (s, &w) in model.springs.iter().zip(&model.spring_weight) {
         let len = (state.positions[s.a as usize] - state.positions[s.b as usize]).length() as f64;
         let err = len - s.rest as f64;
-        e.elastic += 0.5 * s.weight as f64 * err * err;
+        e.elastic += 0.5 * w as f64 * err * err;
     }
     e
 }

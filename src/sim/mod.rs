@@ -1,6 +1,7 @@
 //! Simulation: a static [`Model`], a changing [`State`] and a [`Solver`], advanced one frame at a
 //! time. Each substep runs the stages in the order `lib.rs` lists them:
-//! predict (integrate) → solve (constraints) → collide → commit.
+//! predict (integrate) → solve (constraints) → tethers → collide.
+//! A whole frame runs as one [`team`] region: every thread runs the stage list on its share.
 
 pub mod constraint;
 pub mod integrate;
@@ -8,6 +9,7 @@ pub mod metrics;
 pub mod model;
 pub mod solver;
 pub mod state;
+pub mod team;
 
 use crate::collide::{self, Collider};
 use crate::garment::Garment;
@@ -15,9 +17,10 @@ use crate::scene::{IntegratorKind, Scene, SolverSettings};
 use glam::{Vec3, Vec4};
 use integrate::Verlet;
 pub use model::Model;
-use rayon::prelude::*;
 pub use solver::Solver;
 pub use state::State;
+use std::sync::Mutex;
+use team::{Member, Shared};
 
 /// A running simulation of one scene's garments.
 pub struct Simulation {
@@ -29,6 +32,10 @@ pub struct Simulation {
     verlet: Option<Verlet>,
     /// Inertial prediction of the current substep, storage order.
     target: Vec<Vec4>,
+    /// Each spring's projection (the local step's result).
+    projection: Vec<Vec4>,
+    /// Second position buffer of the Jacobi-style solvers.
+    scratch: Vec<Vec4>,
     pub substeps: u32,
     /// Length of one substep [s].
     pub step: f32,
@@ -67,6 +74,8 @@ impl Simulation {
         let solver = Solver::new(&model, solver, integrating.then_some(step));
         Simulation {
             target: state.positions.clone(),
+            projection: vec![Vec4::ZERO; model.springs.len()],
+            scratch: vec![Vec4::ZERO; model.particle_count()],
             colliders: scene.colliders.iter().map(Collider::from_spec).collect(),
             verlet: integrating.then(|| Verlet::new(gravity, scene.damping, step)),
             substeps: scene.substeps_per_frame(),
@@ -84,40 +93,54 @@ impl Simulation {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
-        for _ in 0..self.substeps {
-            self.substep();
-        }
+        self.run_substeps(self.substeps);
     }
 
-    /// One substep: predict → solve → collide → commit.
+    /// Advances one substep.
     pub fn substep(&mut self) {
-        let State {
-            positions,
-            previous,
-        } = &mut self.state;
-        // 1. Predict: inertia, damping and gravity; the solve starts from the prediction.
-        match &self.verlet {
-            Some(v) => v.predict(&self.model, positions, previous, &mut self.target),
-            None => {
-                previous.copy_from_slice(positions);
-                self.target.copy_from_slice(positions);
-            }
-        }
-        // 2. Solve the constraints.
+        self.run_substeps(1);
+    }
+
+    /// Runs `count` substeps in one team region.
+    fn run_substeps(&mut self, count: u32) {
+        let buffers = solver::Buffers {
+            q: Shared::new(&mut self.state.positions),
+            target: Shared::new(&mut self.target),
+            projection: Shared::new(&mut self.projection),
+            scratch: Shared::new(&mut self.scratch),
+        };
+        let previous = Shared::new(&mut self.state.previous);
         let model = &self.model;
-        match &mut self.residuals {
-            Some(r) => {
-                let mut observe =
-                    |q: &[Vec4]| r.push(metrics::constraint_error(model, q).total_squared_error);
-                self.solver
-                    .solve(model, &self.target, positions, Some(&mut observe));
+        let recording = self.residuals.is_some();
+        let residuals = Mutex::new(self.residuals.as_mut());
+        let observe = |m: &Member| {
+            if !recording {
+                return;
             }
-            None => self.solver.solve(model, &self.target, positions, None),
-        }
-        // 3. Long-range attachments to the pins.
-        apply_tethers(model, &self.target, positions);
-        // 4. Collide.
-        collide::resolve_all(&self.colliders, model, positions, previous);
+            if m.leads() {
+                // SAFETY: between two syncs nobody writes q.
+                let q = unsafe { buffers.q.read_all() };
+                let e = metrics::constraint_error(model, q).total_squared_error;
+                if let Some(r) = residuals.lock().expect("not poisoned").as_mut() {
+                    r.push(e);
+                }
+            }
+            m.sync();
+        };
+        let (solver, verlet, colliders) = (&self.solver, &self.verlet, &self.colliders);
+        team::run(|m| {
+            for _ in 0..count {
+                // 1. Predict: inertia, damping and gravity; the solve starts from the prediction.
+                predict(m, model, verlet.as_ref(), &buffers, previous);
+                m.sync();
+                // 2. Solve the constraints (every solver stage ends with a sync).
+                solver.solve(m, model, &buffers, &observe);
+                // 3. Long-range attachments, 4. collisions: each particle on its own.
+                apply_tethers(m, model, &buffers);
+                collide::resolve_all(m, colliders, model, buffers.q, previous);
+                m.sync();
+            }
+        });
     }
 
     /// Positions in export order.
@@ -139,27 +162,50 @@ impl Simulation {
     pub fn integrating(&self) -> bool {
         self.verlet.is_some()
     }
+}
 
-    /// The solver, for benchmarks that time its parts.
-    pub fn solver_mut(&mut self) -> (&Model, &mut Solver, &mut State, &[Vec4]) {
-        (&self.model, &mut self.solver, &mut self.state, &self.target)
+/// The integrator's stage; without integration positions stay and become the target.
+fn predict(
+    m: &Member,
+    model: &Model,
+    verlet: Option<&Verlet>,
+    b: &solver::Buffers,
+    previous: Shared<Vec4>,
+) {
+    match verlet {
+        Some(v) => v.predict(m, model, b.q, previous, b.target),
+        None => {
+            for i in m.particles(&model.colour_ranges) {
+                // SAFETY: each index is read and written by its own thread only in this stage.
+                unsafe {
+                    let x = b.q.get(i);
+                    previous.set(i, x);
+                    b.target.set(i, x);
+                }
+            }
+        }
     }
 }
 
-/// Projects every tethered particle to within its rest distance of its pin. `anchors` holds the
-/// pins' positions for this step (the prediction, which for a pinned particle is where it is held),
-/// so particles are independent and the pass runs in parallel.
-fn apply_tethers(model: &Model, anchors: &[Vec4], q: &mut [Vec4]) {
+/// Projects this thread's tethered particles to within their rest distance of their pins. The
+/// pins' positions are read from the prediction (where a pinned particle is held this step), which
+/// nobody writes in this stage, so particles are independent.
+fn apply_tethers(m: &Member, model: &Model, b: &solver::Buffers) {
     if model.tethers.is_empty() {
         return;
     }
-    q.par_iter_mut()
-        .with_min_len(solver::PARALLEL_CHUNK)
-        .enumerate()
-        .for_each(|(i, qi)| {
-            let range = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
+    for i in m.particles(&model.colour_ranges) {
+        let range = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
+        if range.is_empty() {
+            continue;
+        }
+        // SAFETY: q[i] belongs to this thread in this stage; target is not written.
+        unsafe {
+            let mut qi = b.q.get(i);
             for &(_, pin, rest) in &model.tethers[range] {
-                *qi = constraint::tether_projection(*qi, anchors[pin as usize], rest);
+                qi = constraint::tether_projection(qi, b.target.get(pin as usize), rest);
             }
-        });
+            b.q.set(i, qi);
+        }
+    }
 }

@@ -15,15 +15,17 @@
 use crate::garment::{Garment, SpringFamily};
 use std::ops::Range;
 
-/// A spring in storage indices.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A spring in storage indices: the 12 bytes the local step reads per spring.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ModelSpring {
     pub a: u32,
     pub b: u32,
+    /// Rest length [m].
     pub rest: f32,
-    pub weight: f32,
-    pub family: SpringFamily,
 }
+
+const _: () = assert!(std::mem::size_of::<ModelSpring>() == 12);
 
 /// One spring seen from one of its particles: 12 bytes, read by every gather-style solver.
 #[repr(C)]
@@ -31,10 +33,28 @@ pub struct ModelSpring {
 pub struct Slot {
     /// The other particle (storage index).
     pub neighbour: u32,
-    /// Rest length [m].
-    pub rest: f32,
+    /// Index of the spring in `Model::springs`, with [`Slot::B_END`] set when this particle is
+    /// the spring's `b` end (it then sees the spring's projection with the opposite sign).
+    pub spring: u32,
     /// Projective Dynamics weight [N/m].
     pub weight: f32,
+}
+
+impl Slot {
+    /// Flag in `spring` marking the `b` end.
+    pub const B_END: u32 = 1 << 31;
+
+    /// The spring's index.
+    #[inline(always)]
+    pub fn spring_index(&self) -> usize {
+        (self.spring & !Slot::B_END) as usize
+    }
+
+    /// +1 at the spring's `a` end, −1 at its `b` end (the flag is the float sign bit).
+    #[inline(always)]
+    pub fn sign(&self) -> f32 {
+        f32::from_bits(1.0f32.to_bits() | (self.spring & Slot::B_END))
+    }
 }
 
 const _: () = assert!(std::mem::size_of::<Slot>() == 12);
@@ -74,6 +94,8 @@ pub struct Model {
     pub slot: Vec<Slot>,
     /// All springs, storage indices; the structural ones first.
     pub springs: Vec<ModelSpring>,
+    /// Weight [N/m] of each spring.
+    pub spring_weight: Vec<f32>,
     /// Number of structural (stretch) springs at the head of `springs`.
     pub structural_springs: usize,
     pub garments: Vec<GarmentRange>,
@@ -150,22 +172,25 @@ impl Model {
                 ));
             }
             for s in &g.springs {
-                springs.push(ModelSpring {
+                let spring = ModelSpring {
                     a: model.storage_of[base + s.a as usize],
                     b: model.storage_of[base + s.b as usize],
                     rest: s.rest,
-                    weight: s.weight,
-                    family: s.family,
-                });
+                };
+                springs.push((s.family, spring, s.weight));
             }
         }
-        // Structural springs first, so metrics read one prefix.
-        springs.sort_by_key(|s| s.family != SpringFamily::Stretch);
+        // Structural springs first, so metrics read one prefix; then in storage order of their
+        // first particle, so a thread's share of springs covers the particles it updates.
+        springs.sort_by_key(|(family, s, _)| {
+            (*family != SpringFamily::Stretch, s.a.min(s.b), s.a.max(s.b))
+        });
         model.structural_springs = springs
             .iter()
-            .filter(|s| s.family == SpringFamily::Stretch)
+            .filter(|(family, _, _)| *family == SpringFamily::Stretch)
             .count();
-        model.springs = springs;
+        model.spring_weight = springs.iter().map(|s| s.2).collect();
+        model.springs = springs.into_iter().map(|s| s.1).collect();
         model.build_slots();
         model.tethers.sort_by_key(|t| (t.0, t.1));
         model.tether_start = vec![0; n + 1];
@@ -183,16 +208,16 @@ impl Model {
     fn build_slots(&mut self) {
         let n = self.mass.len();
         let mut rows: Vec<Vec<Slot>> = vec![Vec::new(); n];
-        for s in &self.springs {
-            let (rest, weight) = (s.rest, s.weight);
+        for (c, s) in self.springs.iter().enumerate() {
+            let (spring, weight) = (c as u32, self.spring_weight[c]);
             rows[s.a as usize].push(Slot {
                 neighbour: s.b,
-                rest,
+                spring,
                 weight,
             });
             rows[s.b as usize].push(Slot {
                 neighbour: s.a,
-                rest,
+                spring: spring | Slot::B_END,
                 weight,
             });
         }
@@ -237,10 +262,12 @@ impl Model {
     pub fn memory_bytes(&self) -> usize {
         let n = self.particle_count();
         let slots = self.slot.len();
-        // positions, previous, target, right-hand side, Jacobi buffer: one 16-byte vec4 each;
-        // mass, inverse mass, contact radius, diagonal, slot starts: 4 bytes each.
-        n * (5 * 16 + 5 * 4 + 4)
-            + slots * 12
-            + self.springs.len() * std::mem::size_of::<ModelSpring>()
+        // positions, previous, target, Jacobi buffer: one 16-byte vec4 each; mass, inverse mass,
+        // inertia, contact radius, diagonal, slot and tether starts: 4 bytes each; per spring its
+        // description and its projection (16 bytes).
+        n * (4 * 16 + 7 * 4)
+            + slots * std::mem::size_of::<Slot>()
+            + self.springs.len() * (std::mem::size_of::<ModelSpring>() + 4 + 16)
+            + self.tethers.len() * 12
     }
 }

@@ -1,19 +1,24 @@
 //! Sequential Gauss-Seidel in grid order: the single-threaded reference every parallel solver is
 //! compared with. Each particle is updated in place, so later rows see earlier rows' new values.
+//! One thread of the team sweeps; the others wait at the barrier.
 
-use super::row;
+use super::{Buffers, Solver};
 use crate::sim::constraint::over_relax;
 use crate::sim::model::Model;
-use glam::Vec4;
+use crate::sim::team::Member;
 
 /// One sweep over every particle in export (grid) order.
-pub fn sweep(model: &Model, rhs: &[Vec4], diag_inv: &[f32], q: &mut [Vec4], omega: f32) {
-    for &s in &model.storage_of {
-        let i = s as usize;
-        if diag_inv[i] == 0.0 {
-            continue;
+pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32) {
+    if m.leads() {
+        // SAFETY: only this thread touches the buffers during this stage.
+        let (target, projection) = unsafe { (b.target.read_all(), b.projection.read_all()) };
+        for &s in &model.storage_of {
+            let i = s as usize;
+            let read = |j: usize| unsafe { b.q.get(j) };
+            if let Some(new) = solver.row(model, i, target, projection, read) {
+                unsafe { b.q.set(i, over_relax(b.q.get(i), new, omega)) };
+            }
         }
-        let new = row(model, i, rhs[i], diag_inv[i], |j| q[j]);
-        q[i] = over_relax(q[i], new, omega);
     }
+    m.sync();
 }

@@ -1,37 +1,32 @@
 //! Jacobi: every particle from the previous iterate, a gather per particle with no atomics.
-//! Trivially parallel, but information travels one neighbour per sweep in both directions at half
-//! Gauss-Seidel's rate, so it needs more iterations for the same residual.
+//! Trivially parallel, but a correction travels one neighbour per sweep where Gauss-Seidel carries
+//! it along the sweep, so it needs more iterations for the same residual.
 
-use super::{row, PARALLEL_CHUNK};
+use super::{Buffers, Solver};
 use crate::sim::constraint::over_relax;
 use crate::sim::model::Model;
-use glam::Vec4;
-use rayon::prelude::*;
+use crate::sim::team::Member;
 
 /// One sweep: new positions into `scratch`, then copied back into `q`.
-pub fn sweep(
-    model: &Model,
-    rhs: &[Vec4],
-    diag_inv: &[f32],
-    q: &mut [Vec4],
-    scratch: &mut [Vec4],
-    omega: f32,
-) {
-    let old: &[Vec4] = q;
-    scratch
-        .par_iter_mut()
-        .with_min_len(PARALLEL_CHUNK)
-        .enumerate()
-        .for_each(|(i, out)| {
-            *out = if diag_inv[i] == 0.0 {
-                old[i]
-            } else {
-                over_relax(
-                    old[i],
-                    row(model, i, rhs[i], diag_inv[i], |j| old[j]),
-                    omega,
-                )
+pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32) {
+    // SAFETY: this stage reads q, target and projection and writes only scratch, each index
+    // by one thread.
+    let mine = m.particles(&model.colour_ranges);
+    {
+        let (q, target, projection) =
+            unsafe { (b.q.read_all(), b.target.read_all(), b.projection.read_all()) };
+        for i in mine.clone() {
+            let new = match solver.row(model, i, target, projection, |j| q[j]) {
+                Some(new) => over_relax(q[i], new, omega),
+                None => q[i],
             };
-        });
-    q.copy_from_slice(scratch);
+            unsafe { b.scratch.set(i, new) };
+        }
+    }
+    m.sync();
+    for i in mine {
+        // SAFETY: each index copied by its own thread; nobody reads q in this stage.
+        unsafe { b.q.set(i, b.scratch.get(i)) };
+    }
+    m.sync();
 }

@@ -5,23 +5,36 @@
 //! Projective Dynamics minimises, over the positions q of one step of length h,
 //!   Σ_i m_i/(2h²) |q_i − s_i|² + Σ_springs w/2 |q_a − q_b − d_ab|²,
 //! with s the inertial prediction and d_ab the spring's projection onto its rest length. Each
-//! *outer* iteration refreshes every d (the local step, [`refresh`]); each *inner* iteration sweeps
-//! the linear global system once. The right-hand side a_i s_i + Σ w d is folded per particle in the
-//! refresh, so a sweep reads only neighbour positions and weights.
+//! *outer* iteration refreshes every d once per spring (the local step, [`project`]); each *inner*
+//! iteration sweeps the linear global system once, a gather per particle:
+//!   q_i ← (a_i s_i + Σ_k w_k (q_k ± d_k)) / (a_i + Σ_k w_k),  a_i = m_i / h².
+//!
+//! Every stage runs on a [`team`](super::team): each thread takes its share of the indices, and
+//! [`Member::sync`] ends the stage.
 
 mod gauss_seidel;
 mod jacobi;
 mod pbd;
 mod rbgs;
 
-use super::constraint::spring_projection;
+use super::constraint::{spring_projection, spring_row_solve};
 use super::model::Model;
+use super::team::{Member, Shared};
 use crate::scene::{SolverKind, SolverSettings};
 use glam::Vec4;
-use rayon::prelude::*;
 
-/// Particles per parallel task: large enough that scheduling costs stay below the work.
-pub(crate) const PARALLEL_CHUNK: usize = 1024;
+/// The arrays one solve reads and writes, shared by the team.
+#[derive(Clone, Copy)]
+pub struct Buffers {
+    /// Positions being solved (storage order).
+    pub q: Shared<Vec4>,
+    /// Inertial prediction s (storage order).
+    pub target: Shared<Vec4>,
+    /// Projection d of every spring, oriented from `a` to `b`.
+    pub projection: Shared<Vec4>,
+    /// Second position buffer of the Jacobi-style solvers.
+    pub scratch: Shared<Vec4>,
+}
 
 /// A solver with the per-particle system of one step size, built once per bake.
 pub struct Solver {
@@ -30,10 +43,6 @@ pub struct Solver {
     inertia: Vec<f32>,
     /// 1 / (a_i + Σ_k w_k), or 0 for particles that never move.
     diag_inv: Vec<f32>,
-    /// a_i s_i + Σ_k w_k d_k, refreshed every outer iteration.
-    rhs: Vec<Vec4>,
-    /// Second buffer of the Jacobi-style solvers.
-    scratch: Vec<Vec4>,
 }
 
 impl Solver {
@@ -65,94 +74,80 @@ impl Solver {
             settings,
             inertia,
             diag_inv,
-            rhs: vec![Vec4::ZERO; n],
-            scratch: vec![Vec4::ZERO; n],
         }
     }
 
-    /// Runs all iterations on `q` (storage order), pulling towards the inertial `target`.
-    /// `observe` is called after every sweep (inner iteration, or PBD iteration) with the iterate.
+    /// Runs every iteration of one step on `b.q`. `observe` runs on the whole team after every
+    /// sweep (inner iteration, or PBD iteration).
     pub fn solve(
-        &mut self,
+        &self,
+        m: &Member,
         model: &Model,
-        target: &[Vec4],
-        q: &mut [Vec4],
-        mut observe: Option<&mut dyn FnMut(&[Vec4])>,
+        b: &Buffers,
+        observe: &(dyn Fn(&Member) + Sync),
     ) {
-        let s = self.settings.clone();
+        let s = &self.settings;
         for _ in 0..s.iterations {
             if s.kind == SolverKind::Pbd {
-                pbd::iterate(model, q, &mut self.scratch, s.omega);
-                if let Some(f) = observe.as_deref_mut() {
-                    f(q);
-                }
+                pbd::iterate(m, model, b, s.omega);
+                observe(m);
                 continue;
             }
-            refresh(model, &self.inertia, target, q, &mut self.rhs);
+            project(m, model, b);
             for _ in 0..s.inner_iterations {
-                self.sweep(model, q);
-                if let Some(f) = observe.as_deref_mut() {
-                    f(q);
-                }
+                self.sweep(m, model, b);
+                observe(m);
             }
         }
     }
 
-    /// One inner iteration of the global step with the current right-hand side.
-    pub fn sweep(&mut self, model: &Model, q: &mut [Vec4]) {
+    /// One inner iteration of the global step with the current projections.
+    pub fn sweep(&self, m: &Member, model: &Model, b: &Buffers) {
         let omega = self.settings.omega;
         match self.settings.kind {
-            SolverKind::Gs => gauss_seidel::sweep(model, &self.rhs, &self.diag_inv, q, omega),
-            SolverKind::Rbgs => rbgs::sweep(model, &self.rhs, &self.diag_inv, q, omega),
-            SolverKind::Jacobi => jacobi::sweep(
-                model,
-                &self.rhs,
-                &self.diag_inv,
-                q,
-                &mut self.scratch,
-                omega,
-            ),
-            SolverKind::Pbd => pbd::iterate(model, q, &mut self.scratch, omega),
+            SolverKind::Gs => gauss_seidel::sweep(m, model, self, b, omega),
+            SolverKind::Rbgs => rbgs::sweep(m, model, self, b, omega),
+            SolverKind::Jacobi => jacobi::sweep(m, model, self, b, omega),
+            SolverKind::Pbd => pbd::iterate(m, model, b, omega),
         }
     }
 
-    /// Refreshes the right-hand side from `q` without sweeping (for benchmarks of one part).
-    pub fn refresh(&mut self, model: &Model, target: &[Vec4], q: &[Vec4]) {
-        refresh(model, &self.inertia, target, q, &mut self.rhs);
+    /// The new position of particle `i` from the Gauss-Seidel row, reading positions with `read`
+    /// (which decides between old and new values), or `None` for a particle that never moves.
+    #[inline(always)]
+    pub(crate) fn row(
+        &self,
+        model: &Model,
+        i: usize,
+        target: &[Vec4],
+        projection: &[Vec4],
+        read: impl Fn(usize) -> Vec4,
+    ) -> Option<Vec4> {
+        let diag_inv = self.diag_inv[i];
+        if diag_inv == 0.0 {
+            return None;
+        }
+        let slots = model.slots(i);
+        let rhs = target[i] * self.inertia[i];
+        Some(spring_row_solve(
+            rhs,
+            slots.iter().map(|s| {
+                let d = projection[s.spring_index()] * s.sign();
+                (s.weight, read(s.neighbour as usize) + d)
+            }),
+            diag_inv,
+        ))
     }
 }
 
-/// The local step: rhs_i = a_i s_i + Σ_k w_k d_k with d_k = spring_projection(q_i, q_k, L_k).
-/// Each spring is projected from both ends, which keeps the pass a race-free gather.
-fn refresh(model: &Model, inertia: &[f32], target: &[Vec4], q: &[Vec4], rhs: &mut [Vec4]) {
-    rhs.par_iter_mut()
-        .with_min_len(PARALLEL_CHUNK)
-        .enumerate()
-        .for_each(|(i, r)| {
-            let qi = q[i];
-            let mut acc = target[i] * inertia[i];
-            for s in model.slots(i) {
-                acc += spring_projection(qi, q[s.neighbour as usize], s.rest) * s.weight;
-            }
-            *r = acc;
-        });
-}
-
-/// One Gauss-Seidel row: the new position of particle `i` given how to read neighbours.
-#[inline(always)]
-pub(crate) fn row(
-    model: &Model,
-    i: usize,
-    rhs: Vec4,
-    diag_inv: f32,
-    read: impl Fn(usize) -> Vec4,
-) -> Vec4 {
-    super::constraint::spring_row_solve(
-        rhs,
-        model
-            .slots(i)
-            .iter()
-            .map(|s| (s.weight, read(s.neighbour as usize))),
-        diag_inv,
-    )
+/// The local step: every spring's projection d = L (q_a − q_b) / |q_a − q_b|, once per spring.
+pub fn project(m: &Member, model: &Model, b: &Buffers) {
+    // SAFETY: this stage writes only `projection`, each spring by one thread; `q` is only read.
+    let q = unsafe { b.q.read_all() };
+    for c in m.share(0..model.springs.len()) {
+        let s = &model.springs[c];
+        let d = spring_projection(q[s.a as usize], q[s.b as usize], s.rest);
+        unsafe { b.projection.set(c, d) };
+    }
+    m.sync();
 }

@@ -3,33 +3,39 @@
 //! moves by ω times their mean. Every spring acts as a hard distance constraint (PBD has no
 //! stiffness weight: its stiffness comes from the iteration count and step size).
 
-use super::PARALLEL_CHUNK;
+use super::Buffers;
 use crate::sim::constraint::pbd_distance_correction;
 use crate::sim::model::Model;
+use crate::sim::team::Member;
 use glam::Vec4;
-use rayon::prelude::*;
 
 /// One Jacobi iteration over every particle.
-pub fn iterate(model: &Model, q: &mut [Vec4], scratch: &mut [Vec4], omega: f32) {
-    let old: &[Vec4] = q;
-    scratch
-        .par_iter_mut()
-        .with_min_len(PARALLEL_CHUNK)
-        .enumerate()
-        .for_each(|(i, out)| {
+pub fn iterate(m: &Member, model: &Model, b: &Buffers, omega: f32) {
+    // SAFETY: this stage reads q and writes only scratch, each index by one thread.
+    let mine = m.particles(&model.colour_ranges);
+    {
+        let q = unsafe { b.q.read_all() };
+        for i in mine.clone() {
             let wi = model.inv_mass[i];
             let slots = model.slots(i);
-            if wi == 0.0 || slots.is_empty() {
-                *out = old[i];
-                return;
-            }
-            let n = slots.len() as f32;
-            let mut sum = Vec4::ZERO;
-            for s in slots {
-                let j = s.neighbour as usize;
-                sum += pbd_distance_correction(old[i], wi, old[j], model.inv_mass[j], s.rest);
-            }
-            *out = old[i] + sum * (omega / n);
-        });
-    q.copy_from_slice(scratch);
+            let new = if wi == 0.0 || slots.is_empty() {
+                q[i]
+            } else {
+                let mut sum = Vec4::ZERO;
+                for s in slots {
+                    let j = s.neighbour as usize;
+                    let rest = model.springs[s.spring_index()].rest;
+                    sum += pbd_distance_correction(q[i], wi, q[j], model.inv_mass[j], rest);
+                }
+                q[i] + sum * (omega / slots.len() as f32)
+            };
+            unsafe { b.scratch.set(i, new) };
+        }
+    }
+    m.sync();
+    for i in mine {
+        // SAFETY: each index copied by its own thread; nobody reads q in this stage.
+        unsafe { b.q.set(i, b.scratch.get(i)) };
+    }
+    m.sync();
 }

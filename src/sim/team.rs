@@ -1,0 +1,180 @@
+//! A team of threads that runs a whole frame in one parallel region, the way OpenMP runs a
+//! `parallel` block: every thread of the current rayon pool executes the same stage list on its
+//! own static share of each index range, and a spinning barrier separates the stages.
+//!
+//! Why not a parallel iterator per stage: a substep has five to six stages of a few microseconds
+//! each, and waking sleeping pool threads for every one cost more than the work (measured: two
+//! threads were no faster than one on scene E). The static shares also make every run touch the
+//! same indices from the same thread, so results never depend on scheduling.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Barrier for the threads of one team: spins briefly, then yields, so an oversubscribed machine
+/// still makes progress.
+pub struct SpinBarrier {
+    threads: usize,
+    arrived: AtomicUsize,
+    generation: AtomicUsize,
+}
+
+impl SpinBarrier {
+    fn new(threads: usize) -> SpinBarrier {
+        SpinBarrier {
+            threads,
+            arrived: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+        }
+    }
+
+    /// Blocks until every thread of the team has arrived. Everything written before `wait` by any
+    /// thread is visible to every thread after it (release on arrival, acquire on departure).
+    fn wait(&self) {
+        if self.threads == 1 {
+            return;
+        }
+        let generation = self.generation.load(Ordering::Acquire);
+        if self.arrived.fetch_add(1, Ordering::AcqRel) + 1 == self.threads {
+            self.arrived.store(0, Ordering::Relaxed);
+            self.generation.fetch_add(1, Ordering::AcqRel);
+            return;
+        }
+        let mut spins = 0u32;
+        while self.generation.load(Ordering::Acquire) == generation {
+            if spins < 1 << 14 {
+                std::hint::spin_loop();
+                spins += 1;
+            } else {
+                std::thread::yield_now();
+            }
+        }
+    }
+}
+
+/// One thread's view of the team.
+pub struct Member<'a> {
+    /// This thread's index, 0..count.
+    pub index: usize,
+    /// Threads in the team.
+    pub count: usize,
+    barrier: &'a SpinBarrier,
+}
+
+impl Member<'_> {
+    /// This thread's contiguous share of `range` (shares differ by at most one index).
+    pub fn share(&self, range: Range<usize>) -> Range<usize> {
+        let len = range.end - range.start;
+        let start = range.start + len * self.index / self.count;
+        let end = range.start + len * (self.index + 1) / self.count;
+        start..end
+    }
+
+    /// This thread's particles: its share of every colour range. A colour is stored in grid
+    /// order, so the shares are the same region of the cloth in every colour, and every
+    /// per-particle stage gives a thread the particles its Gauss-Seidel passes update: the data
+    /// stays in that core's cache.
+    pub fn particles<'r>(
+        &self,
+        colour_ranges: &'r [Range<usize>],
+    ) -> impl Iterator<Item = usize> + Clone + 'r {
+        let (index, count) = (self.index, self.count);
+        colour_ranges.iter().flat_map(move |r| {
+            let len = r.end - r.start;
+            r.start + len * index / count..r.start + len * (index + 1) / count
+        })
+    }
+
+    /// Waits for the whole team: ends a stage.
+    pub fn sync(&self) {
+        self.barrier.wait();
+    }
+
+    /// True on the one thread that does serial work (sequential Gauss-Seidel, metrics).
+    pub fn leads(&self) -> bool {
+        self.index == 0
+    }
+}
+
+/// Runs `body` on every thread of the current rayon pool at once.
+pub fn run(body: impl Fn(&Member) + Sync) {
+    let threads = rayon::current_num_threads().max(1);
+    let barrier = SpinBarrier::new(threads);
+    if threads == 1 {
+        body(&Member {
+            index: 0,
+            count: 1,
+            barrier: &barrier,
+        });
+        return;
+    }
+    rayon::broadcast(|ctx| {
+        body(&Member {
+            index: ctx.index(),
+            count: ctx.num_threads(),
+            barrier: &barrier,
+        })
+    });
+}
+
+/// A slice shared by the threads of a team, each writing only its own indices in a stage.
+///
+/// The team's discipline makes this sound: within one stage an index is written by at most one
+/// thread and read by no other thread (except what colouring guarantees for Gauss-Seidel), and
+/// stages are separated by [`Member::sync`], which orders all memory accesses.
+#[derive(Clone, Copy)]
+pub struct Shared<T> {
+    ptr: *mut T,
+    len: usize,
+}
+
+// SAFETY: access follows the stage discipline above; T is plain data.
+unsafe impl<T: Send> Send for Shared<T> {}
+unsafe impl<T: Send> Sync for Shared<T> {}
+
+impl<T: Copy> Shared<T> {
+    /// Shares `slice` for the duration of one team region.
+    pub fn new(slice: &mut [T]) -> Shared<T> {
+        Shared {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
+        }
+    }
+
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Reads element `i`.
+    ///
+    /// # Safety
+    /// No other thread writes `i` in the current stage.
+    #[inline(always)]
+    pub unsafe fn get(&self, i: usize) -> T {
+        debug_assert!(i < self.len);
+        *self.ptr.add(i)
+    }
+
+    /// Writes element `i`.
+    ///
+    /// # Safety
+    /// No other thread reads or writes `i` in the current stage.
+    #[inline(always)]
+    pub unsafe fn set(&self, i: usize, value: T) {
+        debug_assert!(i < self.len);
+        *self.ptr.add(i) = value;
+    }
+
+    /// The whole slice, for reading.
+    ///
+    /// # Safety
+    /// No thread writes any element in the current stage.
+    pub unsafe fn read_all(&self) -> &[T] {
+        std::slice::from_raw_parts(self.ptr, self.len)
+    }
+}
