@@ -6,8 +6,6 @@
 //! μ × the push (kinetic friction), as position-based friction does (Macklin et al. 2014, §6.1).
 
 use crate::scene::{ColliderKind, ColliderSpec};
-use crate::sim::model::Model;
-use crate::sim::team::{Member, Shared};
 use glam::{Vec3, Vec4};
 
 /// An analytic shape.
@@ -72,53 +70,26 @@ impl Collider {
         }
     }
 
-    /// Pushes `q` out to `radius` from the surface and applies friction to its motion since
-    /// `previous`. Returns the corrected position.
+    /// Resolves a particle that starts the step at `x` and moves by `delta`: pushes it out to
+    /// `radius` from the surface and applies friction to its motion over the step. Returns the
+    /// corrected displacement (unchanged, bit for bit, when there is no contact).
     #[inline]
-    pub fn resolve(&self, q: Vec4, previous: Vec4, radius: f32) -> Vec4 {
-        let p = q.truncate();
-        let (dist, n) = self.distance(p);
+    pub fn resolve(&self, x: Vec4, delta: Vec4, radius: f32) -> Vec4 {
+        let (dist, n) = self.distance((x + delta).truncate());
         let push = radius - dist;
         if push <= 0.0 {
-            return q;
+            return delta;
         }
-        let p = p + n * push;
-        let motion = p - previous.truncate();
+        let motion = delta.truncate() + n * push;
         let tangent = motion - n * motion.dot(n);
         let t_len = tangent.length();
         let limit = self.friction * push;
-        let p = if t_len <= limit {
-            p - tangent
+        let motion = if t_len <= limit {
+            motion - tangent
         } else {
-            p - tangent * (limit / t_len)
+            motion - tangent * (limit / t_len)
         };
-        p.extend(0.0)
-    }
-}
-
-/// Resolves this thread's share of free particles against every collider (each particle alone).
-pub fn resolve_all(
-    m: &Member,
-    colliders: &[Collider],
-    model: &Model,
-    q: Shared<Vec4>,
-    previous: Shared<Vec4>,
-) {
-    if colliders.is_empty() {
-        return;
-    }
-    for i in m.particles(&model.colour_ranges) {
-        if model.inv_mass[i] == 0.0 {
-            continue;
-        }
-        // SAFETY: each index is read and written by its own thread only in this stage.
-        unsafe {
-            let mut qi = q.get(i);
-            for c in colliders {
-                qi = c.resolve(qi, previous.get(i), model.contact_radius[i]);
-            }
-            q.set(i, qi);
-        }
+        motion.extend(0.0)
     }
 }
 

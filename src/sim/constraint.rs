@@ -59,16 +59,15 @@ pub fn pbd_distance_correction(qi: Vec4, wi: f32, qj: Vec4, wj: f32, rest: f32) 
 }
 
 /// Long-range attachment (Kim, Chentanez and Müller 2012): a unilateral distance constraint that
-/// moves particle `q` back to within `rest` of the pinned point `anchor`, and leaves it alone when
-/// it is closer.
+/// keeps a particle within `rest` of its pin. `offset` is the particle's position minus the pin's;
+/// returns the correction to add to the particle (zero when it is close enough).
 #[inline(always)]
-pub fn tether_projection(q: Vec4, anchor: Vec4, rest: f32) -> Vec4 {
-    let d = q - anchor;
-    let len = d.length();
+pub fn tether_correction(offset: Vec4, rest: f32) -> Vec4 {
+    let len = offset.length();
     if len > rest {
-        anchor + d * (rest / len)
+        offset * (rest / len - 1.0)
     } else {
-        q
+        Vec4::ZERO
     }
 }
 

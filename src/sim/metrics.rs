@@ -41,7 +41,7 @@ pub fn constraint_error(model: &Model, positions: &[Vec4]) -> ConstraintError {
 /// Energies of a state [J].
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Energy {
-    /// ½ Σ m |v|², v = (x − x_prev) / h.
+    /// ½ Σ m |v|².
     pub kinetic: f64,
     /// −Σ m g·x (zero at the origin).
     pub gravitational: f64,
@@ -56,14 +56,14 @@ impl Energy {
     }
 }
 
-/// Energies of `state` for steps of `step` seconds under `gravity`.
-pub fn energy(model: &Model, state: &State, gravity: Vec3, step: f32) -> Energy {
+/// Energies of `state` under `gravity`.
+pub fn energy(model: &Model, state: &State, gravity: Vec3) -> Energy {
     let mut e = Energy::default();
     let g = gravity.as_dvec3();
     for i in 0..model.particle_count() {
         let m = model.mass[i] as f64;
         let x = state.positions[i].truncate().as_dvec3();
-        let v = (x - state.previous[i].truncate().as_dvec3()) / step as f64;
+        let v = state.velocities[i].truncate().as_dvec3();
         e.kinetic += 0.5 * m * v.length_squared();
         e.gravitational -= m * g.dot(x);
     }

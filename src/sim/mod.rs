@@ -11,7 +11,7 @@ pub mod solver;
 pub mod state;
 pub mod team;
 
-use crate::collide::{self, Collider};
+use crate::collide::Collider;
 use crate::garment::Garment;
 use crate::scene::{IntegratorKind, Scene, SolverSettings};
 use glam::{Vec3, Vec4};
@@ -30,12 +30,14 @@ pub struct Simulation {
     solver: Solver,
     /// None without time integration (scene E: only the solver moves particles).
     verlet: Option<Verlet>,
-    /// Inertial prediction of the current substep, storage order.
+    /// Inertial displacement of the current substep, storage order.
     target: Vec<Vec4>,
     /// Each spring's projection (the local step's result).
     projection: Vec<Vec4>,
     /// Second position buffer of the Jacobi-style solvers.
     scratch: Vec<Vec4>,
+    /// Displacement of every particle over the current substep (the solver's unknown).
+    delta: Vec<Vec4>,
     pub substeps: u32,
     /// Length of one substep [s].
     pub step: f32,
@@ -73,9 +75,10 @@ impl Simulation {
         let integrating = scene.integrator == IntegratorKind::Verlet;
         let solver = Solver::new(&model, solver, integrating.then_some(step));
         Simulation {
-            target: state.positions.clone(),
+            target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
+            delta: vec![Vec4::ZERO; model.particle_count()],
             colliders: scene.colliders.iter().map(Collider::from_spec).collect(),
             verlet: integrating.then(|| Verlet::new(gravity, scene.damping, step)),
             substeps: scene.substeps_per_frame(),
@@ -104,12 +107,13 @@ impl Simulation {
     /// Runs `count` substeps in one team region.
     fn run_substeps(&mut self, count: u32) {
         let buffers = solver::Buffers {
-            q: Shared::new(&mut self.state.positions),
+            x: Shared::new(&mut self.state.positions),
+            delta: Shared::new(&mut self.delta),
             target: Shared::new(&mut self.target),
             projection: Shared::new(&mut self.projection),
             scratch: Shared::new(&mut self.scratch),
         };
-        let previous = Shared::new(&mut self.state.previous);
+        let velocities = Shared::new(&mut self.state.velocities);
         let model = &self.model;
         let recording = self.residuals.is_some();
         let residuals = Mutex::new(self.residuals.as_mut());
@@ -118,26 +122,34 @@ impl Simulation {
                 return;
             }
             if m.leads() {
-                // SAFETY: between two syncs nobody writes q.
-                let q = unsafe { buffers.q.read_all() };
-                let e = metrics::constraint_error(model, q).total_squared_error;
+                // SAFETY: between two syncs nobody writes x or Δ.
+                let (x, d) = unsafe { (buffers.x.read_all(), buffers.delta.read_all()) };
+                let q: Vec<Vec4> = x.iter().zip(d).map(|(x, d)| *x + *d).collect();
+                let e = metrics::constraint_error(model, &q).total_squared_error;
                 if let Some(r) = residuals.lock().expect("not poisoned").as_mut() {
                     r.push(e);
                 }
             }
             m.sync();
         };
-        let (solver, verlet, colliders) = (&self.solver, &self.verlet, &self.colliders);
+        let stages = Stages {
+            model,
+            verlet: self.verlet.as_ref(),
+            colliders: &self.colliders,
+            b: buffers,
+            velocities,
+        };
+        let solver = &self.solver;
         team::run(|m| {
-            for _ in 0..count {
-                // 1. Predict: inertia, damping and gravity; the solve starts from the prediction.
-                predict(m, model, verlet.as_ref(), &buffers, previous);
-                m.sync();
+            // 1. Predict the first substep; later predictions are fused into step 5.
+            stages.predict(m);
+            m.sync();
+            for k in 0..count {
                 // 2. Solve the constraints (every solver stage ends with a sync).
                 solver.solve(m, model, &buffers, &observe);
-                // 3. Long-range attachments, 4. collisions: each particle on its own.
-                apply_tethers(m, model, &buffers);
-                collide::resolve_all(m, colliders, model, buffers.q, previous);
+                // 3. Tethers, 4. collisions, 5. commit and predict the next substep: one pass,
+                // each particle alone.
+                stages.finish(m, k + 1 < count);
                 m.sync();
             }
         });
@@ -155,7 +167,7 @@ impl Simulation {
 
     /// Energies of the current state.
     pub fn energy(&self) -> metrics::Energy {
-        metrics::energy(&self.model, &self.state, self.gravity, self.step)
+        metrics::energy(&self.model, &self.state, self.gravity)
     }
 
     /// True when particles move under time integration.
@@ -164,48 +176,69 @@ impl Simulation {
     }
 }
 
-/// The integrator's stage; without integration positions stay and become the target.
-fn predict(
-    m: &Member,
-    model: &Model,
-    verlet: Option<&Verlet>,
-    b: &solver::Buffers,
-    previous: Shared<Vec4>,
-) {
-    match verlet {
-        Some(v) => v.predict(m, model, b.q, previous, b.target),
-        None => {
-            for i in m.particles(&model.colour_ranges) {
-                // SAFETY: each index is read and written by its own thread only in this stage.
-                unsafe {
-                    let x = b.q.get(i);
-                    previous.set(i, x);
-                    b.target.set(i, x);
-                }
-            }
-        }
-    }
+/// The per-particle stages of a substep, with what they read and write.
+struct Stages<'a> {
+    model: &'a Model,
+    verlet: Option<&'a Verlet>,
+    colliders: &'a [Collider],
+    b: solver::Buffers,
+    velocities: Shared<Vec4>,
 }
 
-/// Projects this thread's tethered particles to within their rest distance of their pins. The
-/// pins' positions are read from the prediction (where a pinned particle is held this step), which
-/// nobody writes in this stage, so particles are independent.
-fn apply_tethers(m: &Member, model: &Model, b: &solver::Buffers) {
-    if model.tethers.is_empty() {
-        return;
-    }
-    for i in m.particles(&model.colour_ranges) {
-        let range = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
-        if range.is_empty() {
-            continue;
-        }
-        // SAFETY: q[i] belongs to this thread in this stage; target is not written.
-        unsafe {
-            let mut qi = b.q.get(i);
-            for &(_, pin, rest) in &model.tethers[range] {
-                qi = constraint::tether_projection(qi, b.target.get(pin as usize), rest);
+impl Stages<'_> {
+    /// Predicts this thread's free particles: Δ and t become the inertial displacement (zero
+    /// without integration). Pinned particles keep Δ = t = 0 from the start and are never written,
+    /// so other threads may read them in any stage.
+    fn predict(&self, m: &Member) {
+        for i in m.particles(&self.model.colour_ranges) {
+            if self.model.inv_mass[i] != 0.0 {
+                // SAFETY: a free particle is read and written by its own thread only.
+                unsafe { self.predict_one(i) };
             }
-            b.q.set(i, qi);
+        }
+    }
+
+    /// # Safety
+    /// `i` is a free particle of the calling thread.
+    #[inline(always)]
+    unsafe fn predict_one(&self, i: usize) {
+        let t = match self.verlet {
+            Some(v) => v.inertial_displacement(self.velocities.get(i)),
+            None => Vec4::ZERO,
+        };
+        self.b.delta.set(i, t);
+        self.b.target.set(i, t);
+    }
+
+    /// Ends the substep for this thread's free particles: long-range attachments to the pins,
+    /// collisions, then x += Δ and v = Δ/h; and, when `predict_next`, the next prediction.
+    fn finish(&self, m: &Member, predict_next: bool) {
+        let (model, b) = (self.model, &self.b);
+        for i in m.particles(&model.colour_ranges) {
+            if model.inv_mass[i] == 0.0 {
+                continue;
+            }
+            // SAFETY: particle i is this thread's; the pins read by the tethers are never written.
+            unsafe {
+                let x = b.x.get(i);
+                let mut d = b.delta.get(i);
+                let tethers = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
+                for &(_, pin, rest) in &model.tethers[tethers] {
+                    let p = pin as usize;
+                    let offset = (x - b.x.get(p)) + (d - b.target.get(p));
+                    d += constraint::tether_correction(offset, rest);
+                }
+                for c in self.colliders {
+                    d = c.resolve(x, d, model.contact_radius[i]);
+                }
+                b.x.set(i, x + d);
+                if let Some(v) = self.verlet {
+                    self.velocities.set(i, v.velocity(d));
+                }
+                if predict_next {
+                    self.predict_one(i);
+                }
+            }
         }
     }
 }

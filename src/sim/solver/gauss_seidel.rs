@@ -14,9 +14,9 @@ pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32
         let (target, projection) = unsafe { (b.target.read_all(), b.projection.read_all()) };
         for &s in &model.storage_of {
             let i = s as usize;
-            let read = |j: usize| unsafe { b.q.get(j) };
+            let read = |j: usize| unsafe { b.delta.get(j) };
             if let Some(new) = solver.row(model, i, target, projection, read) {
-                unsafe { b.q.set(i, over_relax(b.q.get(i), new, omega)) };
+                unsafe { b.delta.set(i, over_relax(b.delta.get(i), new, omega)) };
             }
         }
     }

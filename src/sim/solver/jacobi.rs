@@ -7,14 +7,19 @@ use crate::sim::constraint::over_relax;
 use crate::sim::model::Model;
 use crate::sim::team::Member;
 
-/// One sweep: new positions into `scratch`, then copied back into `q`.
+/// One sweep: new displacements into `scratch`, then copied back into Δ.
 pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32) {
-    // SAFETY: this stage reads q, target and projection and writes only scratch, each index
+    // SAFETY: this stage reads Δ, target and projection and writes only scratch, each index
     // by one thread.
     let mine = m.particles(&model.colour_ranges);
     {
-        let (q, target, projection) =
-            unsafe { (b.q.read_all(), b.target.read_all(), b.projection.read_all()) };
+        let (q, target, projection) = unsafe {
+            (
+                b.delta.read_all(),
+                b.target.read_all(),
+                b.projection.read_all(),
+            )
+        };
         for i in mine.clone() {
             let new = match solver.row(model, i, target, projection, |j| q[j]) {
                 Some(new) => over_relax(q[i], new, omega),
@@ -25,8 +30,8 @@ pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32
     }
     m.sync();
     for i in mine {
-        // SAFETY: each index copied by its own thread; nobody reads q in this stage.
-        unsafe { b.q.set(i, b.scratch.get(i)) };
+        // SAFETY: each index copied by its own thread; nobody reads Δ in this stage.
+        unsafe { b.delta.set(i, b.scratch.get(i)) };
     }
     m.sync();
 }

@@ -9,6 +9,13 @@
 //! iteration sweeps the linear global system once, a gather per particle:
 //!   q_i ← (a_i s_i + Σ_k w_k (q_k ± d_k)) / (a_i + Σ_k w_k),  a_i = m_i / h².
 //!
+//! **Delta form.** The unknown is the displacement Δ = q − x over the step, not q itself. With 100
+//! steps per frame a step moves a particle by about 10⁻⁴ m, which single precision resolves to
+//! 10⁻¹¹ m as a displacement but only to 6·10⁻⁸ m as a position near 1 m: solving for positions
+//! quantised the constraint forces to whole ulps and made energy drift. Substituting q = x + Δ,
+//! the row becomes Δ_i ← (a_i t_i + Σ_k w_k (Δ_k ± g_k)) / (a_i + Σ_k w_k) with t_i = s_i − x_i and
+//! g = d − (x_a − x_b): the same sweep, on small, precise numbers.
+//!
 //! Every stage runs on a [`team`](super::team): each thread takes its share of the indices, and
 //! [`Member::sync`] ends the stage.
 
@@ -23,16 +30,18 @@ use super::team::{Member, Shared};
 use crate::scene::{SolverKind, SolverSettings};
 use glam::Vec4;
 
-/// The arrays one solve reads and writes, shared by the team.
+/// The arrays one solve reads and writes, shared by the team (storage order).
 #[derive(Clone, Copy)]
 pub struct Buffers {
-    /// Positions being solved (storage order).
-    pub q: Shared<Vec4>,
-    /// Inertial prediction s (storage order).
+    /// Positions at the start of the step, x (read-only during the solve).
+    pub x: Shared<Vec4>,
+    /// Displacements over the step being solved, Δ = q − x.
+    pub delta: Shared<Vec4>,
+    /// Inertial displacement t = s − x (the prediction's).
     pub target: Shared<Vec4>,
-    /// Projection d of every spring, oriented from `a` to `b`.
+    /// Per spring, g = d − (x_a − x_b): its projection d relative to its start-of-step edge.
     pub projection: Shared<Vec4>,
-    /// Second position buffer of the Jacobi-style solvers.
+    /// Second displacement buffer of the Jacobi-style solvers.
     pub scratch: Shared<Vec4>,
 }
 
@@ -77,7 +86,7 @@ impl Solver {
         }
     }
 
-    /// Runs every iteration of one step on `b.q`. `observe` runs on the whole team after every
+    /// Runs every iteration of one step on `b.delta`. `observe` runs on the whole team after every
     /// sweep (inner iteration, or PBD iteration).
     pub fn solve(
         &self,
@@ -112,8 +121,9 @@ impl Solver {
         }
     }
 
-    /// The new position of particle `i` from the Gauss-Seidel row, reading positions with `read`
-    /// (which decides between old and new values), or `None` for a particle that never moves.
+    /// The new displacement of particle `i` from the Gauss-Seidel row, reading displacements with
+    /// `read` (which decides between old and new values), or `None` for a particle that never
+    /// moves.
     #[inline(always)]
     pub(crate) fn row(
         &self,
@@ -140,14 +150,18 @@ impl Solver {
     }
 }
 
-/// The local step: every spring's projection d = L (q_a − q_b) / |q_a − q_b|, once per spring.
+/// The local step: every spring's projection d = L (q_a − q_b) / |q_a − q_b|, once per spring,
+/// stored as g = d − (x_a − x_b). The edge q_a − q_b is formed as (x_a − x_b) + (Δ_a − Δ_b), so
+/// neither term loses the small displacement.
 pub fn project(m: &Member, model: &Model, b: &Buffers) {
-    // SAFETY: this stage writes only `projection`, each spring by one thread; `q` is only read.
-    let q = unsafe { b.q.read_all() };
+    // SAFETY: this stage writes only `projection`, each spring by one thread; x and Δ are read.
+    let (x, delta) = unsafe { (b.x.read_all(), b.delta.read_all()) };
     for c in m.share(0..model.springs.len()) {
         let s = &model.springs[c];
-        let d = spring_projection(q[s.a as usize], q[s.b as usize], s.rest);
-        unsafe { b.projection.set(c, d) };
+        let (a, bb) = (s.a as usize, s.b as usize);
+        let rest_edge = x[a] - x[bb];
+        let d = spring_projection(rest_edge + (delta[a] - delta[bb]), Vec4::ZERO, s.rest);
+        unsafe { b.projection.set(c, d - rest_edge) };
     }
     m.sync();
 }

@@ -11,10 +11,10 @@ use glam::Vec4;
 
 /// One Jacobi iteration over every particle.
 pub fn iterate(m: &Member, model: &Model, b: &Buffers, omega: f32) {
-    // SAFETY: this stage reads q and writes only scratch, each index by one thread.
+    // SAFETY: this stage reads x and Δ and writes only scratch, each index by one thread.
     let mine = m.particles(&model.colour_ranges);
     {
-        let q = unsafe { b.q.read_all() };
+        let (x, q) = unsafe { (b.x.read_all(), b.delta.read_all()) };
         for i in mine.clone() {
             let wi = model.inv_mass[i];
             let slots = model.slots(i);
@@ -25,7 +25,9 @@ pub fn iterate(m: &Member, model: &Model, b: &Buffers, omega: f32) {
                 for s in slots {
                     let j = s.neighbour as usize;
                     let rest = model.springs[s.spring_index()].rest;
-                    sum += pbd_distance_correction(q[i], wi, q[j], model.inv_mass[j], rest);
+                    // The edge from start positions and displacements, which keeps its precision.
+                    let edge = (x[i] - x[j]) + (q[i] - q[j]);
+                    sum += pbd_distance_correction(edge, wi, Vec4::ZERO, model.inv_mass[j], rest);
                 }
                 q[i] + sum * (omega / slots.len() as f32)
             };
@@ -34,8 +36,8 @@ pub fn iterate(m: &Member, model: &Model, b: &Buffers, omega: f32) {
     }
     m.sync();
     for i in mine {
-        // SAFETY: each index copied by its own thread; nobody reads q in this stage.
-        unsafe { b.q.set(i, b.scratch.get(i)) };
+        // SAFETY: each index copied by its own thread; nobody reads Δ in this stage.
+        unsafe { b.delta.set(i, b.scratch.get(i)) };
     }
     m.sync();
 }

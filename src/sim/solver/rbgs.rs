@@ -16,9 +16,9 @@ pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32
         for i in m.share(range.clone()) {
             // SAFETY: `i` is this thread's alone in this stage; the neighbours read have other
             // colours, which no thread writes during this stage.
-            let read = |j: usize| unsafe { b.q.get(j) };
+            let read = |j: usize| unsafe { b.delta.get(j) };
             if let Some(new) = solver.row(model, i, target, projection, read) {
-                unsafe { b.q.set(i, over_relax(b.q.get(i), new, omega)) };
+                unsafe { b.delta.set(i, over_relax(b.delta.get(i), new, omega)) };
             }
         }
         m.sync();

@@ -1,0 +1,38 @@
+//! Helpers shared by the integration tests: scenes from JSON text, bakes in temporary folders,
+//! and running the `drape` binary.
+#![allow(dead_code)]
+
+use drape::scene::Scene;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+/// Parses a scene written in the test (panics with the parse error if it is invalid).
+pub fn scene(json: &str) -> Scene {
+    Scene::parse(json, "<test scene>").unwrap_or_else(|e| panic!("test scene invalid: {e}"))
+}
+
+/// A fresh temporary folder, removed when dropped.
+pub fn temp_dir() -> tempfile::TempDir {
+    tempfile::tempdir().expect("temporary folder")
+}
+
+/// Runs the drape binary with `args` in `dir`.
+pub fn drape(dir: &Path, args: &[&str]) -> Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("drape runs")
+}
+
+/// Writes `text` to `dir/name` and returns the path.
+pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write test file");
+    path
+}
+
+/// stderr of a finished command as text.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
