@@ -1,0 +1,191 @@
+//! The command line as a user meets it: bakes that write what they promise, and bad input that
+//! fails with exit code 2, a message naming the file, field and reason, and no output folder.
+
+mod common;
+
+use common::{drape, stderr, temp_dir, write};
+
+const GOOD: &str = r#"{ "name": "small", "frames": 3,
+  "garments": [{ "name": "cloth", "resolution": [6, 5], "pins": [[0, 0], [-1, 0]] }] }"#;
+
+/// Runs `drape bake` on scene text that must be rejected; returns stderr.
+fn rejected(scene: &str, extra: &[&str]) -> String {
+    let dir = temp_dir();
+    write(dir.path(), "scene.json", scene);
+    let mut args = vec!["bake", "scene.json", "--out", "out"];
+    args.extend_from_slice(extra);
+    let out = drape(dir.path(), &args);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "exit code for {scene}: {err}");
+    assert!(
+        !dir.path().join("out").exists(),
+        "an output folder was left for {scene}"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(
+        leftovers.len(),
+        1,
+        "only the scene should remain: {leftovers:?}"
+    );
+    err
+}
+
+#[test]
+fn bake_writes_obj_frames_and_a_report() {
+    let dir = temp_dir();
+    write(dir.path(), "scene.json", GOOD);
+    let out = drape(dir.path(), &["bake", "scene.json", "--out", "bakes/small"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let bake = dir.path().join("bakes/small");
+    for f in 1..=3 {
+        assert!(bake.join(format!("obj/cloth_{f:04}.obj")).is_file());
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(bake.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["schema"], "drape.report/1");
+    assert_eq!(report["particles"], 30);
+    assert_eq!(report["frames_baked"], 3);
+    assert_eq!(report["garments"][0]["pinned"], 2);
+    assert_eq!(report["garments"][0]["colours"], 2);
+    assert_eq!(report["backend"]["kind"], "cpu");
+    assert_eq!(report["stable"], true);
+    assert!(report["ms_per_frame"]["median"].as_f64().unwrap() > 0.0);
+    // A second bake replaces the first.
+    let again = drape(
+        dir.path(),
+        &[
+            "bake",
+            "scene.json",
+            "--out",
+            "bakes/small",
+            "--frames",
+            "2",
+        ],
+    );
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert!(!bake.join("obj/cloth_0003.obj").exists());
+}
+
+#[test]
+fn the_embedded_default_scene_inspects() {
+    let dir = temp_dir();
+    let out = drape(dir.path(), &["inspect"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("10000 particles") && text.contains("2 colours"),
+        "{text}"
+    );
+}
+
+#[test]
+fn malformed_json_names_line_and_column() {
+    let err = rejected("{\n  \"fps\": 60,,\n}", &[]);
+    assert!(err.contains("scene.json:2:"), "{err}");
+}
+
+#[test]
+fn unknown_field_is_named_with_its_path() {
+    let err = rejected(r#"{ "garments": [{ "resolutoin": [4, 4] }] }"#, &[]);
+    assert!(
+        err.contains("garments[0]") && err.contains("resolutoin"),
+        "{err}"
+    );
+}
+
+#[test]
+fn impossible_values_name_their_field() {
+    for (scene, field) in [
+        (
+            r#"{ "garments": [{ "resolution": [0, 10] }] }"#,
+            "garments[0].resolution",
+        ),
+        (
+            r#"{ "garments": [{ "resolution": [-3, 10] }] }"#,
+            "garments[0].resolution",
+        ),
+        (r#"{ "garments": [{ "mass": -1 }] }"#, "garments[0].mass"),
+        (r#"{ "fps": 0, "garments": [{}] }"#, "fps"),
+        (
+            r#"{ "garments": [{ "resolution": [4, 4], "pins": [[4, 0]] }] }"#,
+            "garments[0].pins",
+        ),
+        (r#"{ "garments": [] }"#, "garments"),
+        (
+            r#"{ "solver": { "omega": 2.5 }, "garments": [{}] }"#,
+            "solver.omega",
+        ),
+        (
+            r#"{ "colliders": [{ "kind": "sphere", "radius": 1 }], "garments": [{}] }"#,
+            "colliders[0].center",
+        ),
+    ] {
+        let err = rejected(scene, &[]);
+        assert!(
+            err.contains(field),
+            "{scene}: message does not name {field}: {err}"
+        );
+    }
+}
+
+#[test]
+fn bad_flags_are_input_errors() {
+    let err = rejected(GOOD, &["--frames", "0"]);
+    assert!(err.contains("--frames"), "{err}");
+}
+
+#[test]
+fn missing_scene_file_is_named() {
+    let dir = temp_dir();
+    let out = drape(dir.path(), &["bake", "nowhere.json", "--out", "out"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("nowhere.json"), "{}", stderr(&out));
+    assert!(!dir.path().join("out").exists());
+}
+
+#[test]
+fn a_folder_that_is_not_a_bake_is_never_replaced() {
+    let dir = temp_dir();
+    write(dir.path(), "scene.json", GOOD);
+    std::fs::create_dir(dir.path().join("precious")).unwrap();
+    write(&dir.path().join("precious"), "thesis.tex", "years of work");
+    let out = drape(dir.path(), &["bake", "scene.json", "--out", "precious"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(dir.path().join("precious/thesis.tex").is_file());
+}
+
+#[test]
+fn a_blow_up_stops_with_a_report_and_the_frames_before_it() {
+    // Jacobi over-relaxed to ω = 1.95 diverges on the checkerboard mode of a grid.
+    let dir = temp_dir();
+    write(
+        dir.path(),
+        "scene.json",
+        r#"{ "frames": 60, "substeps": 1, "solver": { "kind": "jacobi", "iterations": 20, "omega": 1.95 },
+             "garments": [{ "name": "cloth", "resolution": [16, 16], "pins": [[0, 0], [-1, 0]], "tethers": false }] }"#,
+    );
+    let out = drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("unstable"), "{}", stderr(&out));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/report.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["stable"], false);
+    let failed = report["failure"]["frame"].as_u64().unwrap();
+    let baked = report["frames_baked"].as_u64().unwrap();
+    assert_eq!(baked + 1, failed);
+    assert!(failed < 60);
+    for f in 1..=baked {
+        assert!(dir
+            .path()
+            .join(format!("out/obj/cloth_{f:04}.obj"))
+            .is_file());
+    }
+    assert!(!dir
+        .path()
+        .join(format!("out/obj/cloth_{failed:04}.obj"))
+        .exists());
+}
