@@ -129,7 +129,7 @@ fn run(
         }
         if scene.output.obj {
             let positions = sim.export_positions();
-            for g in &sim.model.garments {
+            for g in &sim.model().garments {
                 obj::write_frame(&obj_dir, g, frame, &positions[g.export.clone()])?;
             }
         }
@@ -147,7 +147,7 @@ fn run(
 }
 
 fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads: usize) -> Report {
-    let model = &sim.model;
+    let model = sim.model();
     Report {
         schema: SCHEMA,
         drape_version: env!("CARGO_PKG_VERSION"),

@@ -44,8 +44,8 @@ fn hanging_cloth_energy_excess(iterations: u32) -> (f64, f64) {
     let mut scene = reference::load(reference::HANGING_CLOTH, "hanging_cloth.json");
     scene.solver.iterations = iterations;
     let mut sim = Simulation::new(&scene);
-    let pins: Vec<usize> = (0..sim.model.particle_count())
-        .filter(|&i| sim.model.inv_mass[i] == 0.0)
+    let pins: Vec<usize> = (0..sim.model().particle_count())
+        .filter(|&i| sim.model().inv_mass[i] == 0.0)
         .collect();
     assert_eq!(pins.len(), 2);
     let pinned: Vec<_> = pins.iter().map(|&i| sim.state.positions[i]).collect();

@@ -12,11 +12,18 @@ const TINY_LENGTH: f32 = 1e-12;
 #[inline(always)]
 pub fn spring_projection(qi: Vec4, qj: Vec4, rest: f32) -> Vec4 {
     let d = qi - qj;
-    let len = d.length();
-    if len > TINY_LENGTH {
-        d * (rest / len)
+    d * spring_projection_scale(d.length_squared(), rest)
+}
+
+/// The factor L / |e| that scales an edge e with squared length `length_squared` onto rest length
+/// L (0 for an edge too short to have a direction): `spring_projection` split so a batch of
+/// springs can take its square roots and divisions together.
+#[inline(always)]
+pub fn spring_projection_scale(length_squared: f32, rest: f32) -> f32 {
+    if length_squared > TINY_LENGTH * TINY_LENGTH {
+        rest / length_squared.sqrt()
     } else {
-        Vec4::ZERO
+        0.0
     }
 }
 
@@ -63,9 +70,10 @@ pub fn pbd_distance_correction(qi: Vec4, wi: f32, qj: Vec4, wj: f32, rest: f32) 
 /// returns the correction to add to the particle (zero when it is close enough).
 #[inline(always)]
 pub fn tether_correction(offset: Vec4, rest: f32) -> Vec4 {
-    let len = offset.length();
-    if len > rest {
-        offset * (rest / len - 1.0)
+    // Most particles are slack: compare squared lengths and take the root only when pulled.
+    let len2 = offset.length_squared();
+    if len2 > rest * rest {
+        offset * (rest / len2.sqrt() - 1.0)
     } else {
         Vec4::ZERO
     }

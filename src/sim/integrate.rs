@@ -16,6 +16,8 @@ pub struct Verlet {
     pub keep: f32,
     /// Step h [s].
     pub step: f32,
+    /// 1/h [1/s].
+    pub inv_step: f32,
 }
 
 impl Verlet {
@@ -25,6 +27,7 @@ impl Verlet {
             gravity_step: (gravity * h).extend(0.0),
             keep: (-damping * h).exp(),
             step: h,
+            inv_step: 1.0 / h,
         }
     }
 
@@ -37,6 +40,6 @@ impl Verlet {
     /// The velocity after a step that moved a particle by `delta`: Δ/h.
     #[inline(always)]
     pub fn velocity(&self, delta: Vec4) -> Vec4 {
-        delta * (1.0 / self.step)
+        delta * self.inv_step
     }
 }

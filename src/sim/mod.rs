@@ -24,7 +24,8 @@ use team::{Member, Shared};
 
 /// A running simulation of one scene's garments.
 pub struct Simulation {
-    pub model: Model,
+    /// Private: the solver indexes it unchecked, so it must not change after validation.
+    model: Model,
     pub state: State,
     pub colliders: Vec<Collider>,
     solver: Solver,
@@ -153,6 +154,11 @@ impl Simulation {
                 m.sync();
             }
         });
+    }
+
+    /// The static model (read-only: the solver validated it once).
+    pub fn model(&self) -> &Model {
+        &self.model
     }
 
     /// Positions in export order.

@@ -241,6 +241,77 @@ impl Model {
         &self.slot[self.slot_start[i] as usize..self.slot_start[i + 1] as usize]
     }
 
+    /// Checks every index invariant the solvers' unchecked loops rely on: colour ranges partition
+    /// the particles, slot rows are well formed, and every particle, neighbour, spring, pin and
+    /// tether index is in range. Panics with the broken invariant (a bug in drape, not bad input).
+    pub fn validate(&self) {
+        let n = self.particle_count();
+        let per_particle = [
+            ("inv_mass", self.inv_mass.len()),
+            ("contact_radius", self.contact_radius.len()),
+            ("storage_of", self.storage_of.len()),
+        ];
+        for (name, len) in per_particle {
+            assert_eq!(len, n, "model: {name} has {len} entries for {n} particles");
+        }
+        let mut next = 0;
+        for r in &self.colour_ranges {
+            assert_eq!(r.start, next, "model: colour ranges must be contiguous");
+            next = r.end;
+        }
+        assert_eq!(next, n, "model: colour ranges must cover every particle");
+        assert!(
+            self.storage_of.iter().all(|&s| (s as usize) < n),
+            "model: storage_of out of range"
+        );
+        assert_eq!(self.slot_start.len(), n + 1, "model: slot_start length");
+        assert!(
+            self.slot_start.windows(2).all(|w| w[0] <= w[1]),
+            "model: slot rows overlap"
+        );
+        assert_eq!(
+            self.slot_start[n] as usize,
+            self.slot.len(),
+            "model: slot rows length"
+        );
+        let springs = self.springs.len();
+        assert_eq!(self.spring_weight.len(), springs, "model: spring weights");
+        assert!(
+            self.springs
+                .iter()
+                .all(|s| (s.a as usize) < n && (s.b as usize) < n),
+            "model: spring end out of range"
+        );
+        assert!(
+            self.slot
+                .iter()
+                .all(|s| (s.neighbour as usize) < n && s.spring_index() < springs),
+            "model: slot out of range"
+        );
+        assert_eq!(self.tether_start.len(), n + 1, "model: tether_start length");
+        assert!(
+            self.tether_start.windows(2).all(|w| w[0] <= w[1]),
+            "model: tether rows overlap"
+        );
+        assert_eq!(
+            self.tether_start[n] as usize,
+            self.tethers.len(),
+            "model: tether rows length"
+        );
+        assert!(
+            self.tethers
+                .iter()
+                .all(|t| (t.0 as usize) < n && (t.1 as usize) < n),
+            "model: tether out of range"
+        );
+        assert!(
+            self.tethers
+                .iter()
+                .all(|t| self.inv_mass[t.1 as usize] == 0.0),
+            "model: a tether must end at a pinned particle"
+        );
+    }
+
     /// True when no spring joins two particles of the same colour (what parallel Gauss-Seidel
     /// relies on); returns the first offending spring otherwise.
     pub fn check_colouring(&self) -> Result<(), ModelSpring> {

@@ -24,7 +24,7 @@ mod jacobi;
 mod pbd;
 mod rbgs;
 
-use super::constraint::{spring_projection, spring_row_solve};
+use super::constraint::{spring_projection_scale, spring_row_solve};
 use super::model::Model;
 use super::team::{Member, Shared};
 use crate::scene::{SolverKind, SolverSettings};
@@ -56,7 +56,12 @@ pub struct Solver {
 
 impl Solver {
     /// Prepares the system for steps of `step` seconds (`None`: no inertia, scene E).
-    pub fn new(model: &Model, settings: SolverSettings, step: Option<f32>) -> Solver {
+    ///
+    /// The model must not change afterwards: the sweeps index it without bounds checks, which is
+    /// sound because [`Model::validate`] checked every index here, and `Simulation` owns both
+    /// and never hands out the model mutably.
+    pub(crate) fn new(model: &Model, settings: SolverSettings, step: Option<f32>) -> Solver {
+        model.validate();
         // Parallel Gauss-Seidel writes one colour while reading the others: that is only a
         // data-race-free Gauss-Seidel sweep if no spring joins two particles of one colour.
         if let Err(s) = model.check_colouring() {
@@ -111,7 +116,7 @@ impl Solver {
     }
 
     /// One inner iteration of the global step with the current projections.
-    pub fn sweep(&self, m: &Member, model: &Model, b: &Buffers) {
+    pub(crate) fn sweep(&self, m: &Member, model: &Model, b: &Buffers) {
         let omega = self.settings.omega;
         match self.settings.kind {
             SolverKind::Gs => gauss_seidel::sweep(m, model, self, b, omega),
@@ -133,35 +138,71 @@ impl Solver {
         projection: &[Vec4],
         read: impl Fn(usize) -> Vec4,
     ) -> Option<Vec4> {
-        let diag_inv = self.diag_inv[i];
-        if diag_inv == 0.0 {
-            return None;
+        // SAFETY: `i` and every slot's neighbour and spring are below the lengths checked by
+        // Model::validate (in Solver::new) and by the assertion in Solver::solve.
+        unsafe {
+            let diag_inv = *self.diag_inv.get_unchecked(i);
+            if diag_inv == 0.0 {
+                return None;
+            }
+            let row = *model.slot_start.get_unchecked(i) as usize
+                ..*model.slot_start.get_unchecked(i + 1) as usize;
+            let rhs = *target.get_unchecked(i) * *self.inertia.get_unchecked(i);
+            Some(spring_row_solve(
+                rhs,
+                model.slot.get_unchecked(row).iter().map(|s| {
+                    let d = *projection.get_unchecked(s.spring_index()) * s.sign();
+                    (s.weight, read(s.neighbour as usize) + d)
+                }),
+                diag_inv,
+            ))
         }
-        let slots = model.slots(i);
-        let rhs = target[i] * self.inertia[i];
-        Some(spring_row_solve(
-            rhs,
-            slots.iter().map(|s| {
-                let d = projection[s.spring_index()] * s.sign();
-                (s.weight, read(s.neighbour as usize) + d)
-            }),
-            diag_inv,
-        ))
     }
 }
 
 /// The local step: every spring's projection d = L (q_a − q_b) / |q_a − q_b|, once per spring,
 /// stored as g = d − (x_a − x_b). The edge q_a − q_b is formed as (x_a − x_b) + (Δ_a − Δ_b), so
 /// neither term loses the small displacement.
-pub fn project(m: &Member, model: &Model, b: &Buffers) {
+pub(crate) fn project(m: &Member, model: &Model, b: &Buffers) {
     // SAFETY: this stage writes only `projection`, each spring by one thread; x and Δ are read.
     let (x, delta) = unsafe { (b.x.read_all(), b.delta.read_all()) };
-    for c in m.share(0..model.springs.len()) {
-        let s = &model.springs[c];
-        let (a, bb) = (s.a as usize, s.b as usize);
-        let rest_edge = x[a] - x[bb];
-        let d = spring_projection(rest_edge + (delta[a] - delta[bb]), Vec4::ZERO, s.rest);
-        unsafe { b.projection.set(c, d - rest_edge) };
+    let mine = m.share(0..model.springs.len());
+    let mut start = mine.start;
+    // Batches of 8 springs: the gathers stay per spring, while the square roots and divisions of
+    // a batch run as packed SIMD (the same correctly rounded results as one at a time).
+    let mut edge = [Vec4::ZERO; PROJECT_BATCH];
+    let mut rest_edge = [Vec4::ZERO; PROJECT_BATCH];
+    let mut scale = [0.0f32; PROJECT_BATCH];
+    while start < mine.end {
+        let springs = &model.springs[start..mine.end.min(start + PROJECT_BATCH)];
+        for (k, s) in springs.iter().enumerate() {
+            let (a, bb) = (s.a as usize, s.b as usize);
+            // SAFETY: spring ends are below the particle count (Model::validate, Solver::solve).
+            let (xa, xb, da, db) = unsafe {
+                (
+                    *x.get_unchecked(a),
+                    *x.get_unchecked(bb),
+                    *delta.get_unchecked(a),
+                    *delta.get_unchecked(bb),
+                )
+            };
+            rest_edge[k] = xa - xb;
+            edge[k] = rest_edge[k] + (da - db);
+            scale[k] = edge[k].length_squared();
+        }
+        for (f, s) in scale.iter_mut().zip(springs) {
+            *f = spring_projection_scale(*f, s.rest);
+        }
+        for k in 0..springs.len() {
+            unsafe {
+                b.projection
+                    .set(start + k, edge[k] * scale[k] - rest_edge[k])
+            };
+        }
+        start += springs.len();
     }
     m.sync();
 }
+
+/// Springs per batch of the local step.
+const PROJECT_BATCH: usize = 8;
