@@ -2,17 +2,12 @@
 
 use super::args::InspectArgs;
 use super::resolve;
-use drape::garment::{Garment, SpringFamily};
+use drape::garment::SpringFamily;
 use drape::sim::Model;
 
 pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     let (scene, file) = resolve::scene(&args.scene)?;
-    let garments: Vec<Garment> = scene
-        .garments
-        .iter()
-        .enumerate()
-        .map(|(i, g)| Garment::build(scene.garment_name(i), g))
-        .collect();
+    let garments = drape::garment::build_all(&scene);
     let model = Model::new(&garments);
     println!("scene '{}' ({file}): valid", scene.name);
     println!(

@@ -174,6 +174,16 @@ impl Garment {
     }
 }
 
+/// Builds every garment of a (validated) scene, in scene order.
+pub fn build_all(scene: &crate::scene::Scene) -> Vec<Garment> {
+    scene
+        .garments
+        .iter()
+        .enumerate()
+        .map(|(i, spec)| Garment::build(scene.garment_name(i), spec))
+        .collect()
+}
+
 /// Lattice cell of grid-order index `k` (x fastest).
 pub fn cell_of(dims: [u32; 3], k: u32) -> [u32; 3] {
     [

@@ -50,13 +50,11 @@ pub struct Simulation {
 impl Simulation {
     /// Builds the garments, model, solver and colliders of a (validated) scene.
     pub fn new(scene: &Scene) -> Simulation {
-        let garments: Vec<Garment> = scene
-            .garments
-            .iter()
-            .enumerate()
-            .map(|(i, spec)| Garment::build(scene.garment_name(i), spec))
-            .collect();
-        Simulation::from_garments(scene, &garments, scene.solver.clone())
+        Simulation::from_garments(
+            scene,
+            &crate::garment::build_all(scene),
+            scene.solver.clone(),
+        )
     }
 
     /// Builds a simulation of `garments` with the timing, forces and colliders of `scene`.
