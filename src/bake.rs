@@ -6,12 +6,13 @@
 
 use crate::collide;
 use crate::error::{Error, Result};
-use crate::export::{obj, Staging};
+use crate::export::{FrameWriter, Staging};
+use crate::gpu::{GpuContext, GpuSimulation};
 use crate::report::{
-    Backend, ColliderPenetration, Failure, FrameMetrics, GarmentReport, Outputs, Report, Timing,
-    SCHEMA,
+    Adapter, Backend, ColliderPenetration, Failure, FrameMetrics, GarmentReport, Outputs, Report,
+    Timing, SCHEMA,
 };
-use crate::scene::Scene;
+use crate::scene::{BackendKind, Scene};
 use crate::sim::{metrics, Simulation};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -75,6 +76,29 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
     })
 }
 
+/// The GPU simulation the scene's backend asks for, or `None` for the CPU; `auto` falls back to
+/// the CPU with a warning, `gpu` fails with the reason.
+pub fn gpu_backend(
+    scene: &Scene,
+    sim: &Simulation,
+    warnings: &mut Vec<String>,
+) -> Result<Option<GpuSimulation>> {
+    match scene.backend {
+        BackendKind::Cpu => Ok(None),
+        BackendKind::Gpu => Ok(Some(GpuSimulation::new(GpuContext::new(false)?, sim)?)),
+        BackendKind::Auto => {
+            let gpu = GpuContext::new(true).and_then(|ctx| GpuSimulation::new(ctx, sim));
+            match gpu {
+                Ok(g) => Ok(Some(g)),
+                Err(e) => {
+                    warnings.push(format!("backend auto: {e}; simulating on the CPU"));
+                    Ok(None)
+                }
+            }
+        }
+    }
+}
+
 fn run(
     scene: &Scene,
     options: &BakeOptions,
@@ -82,11 +106,33 @@ fn run(
     threads: usize,
 ) -> Result<(Report, Vec<Vec3>)> {
     let mut sim = Simulation::new(scene);
+    let mut warnings = Vec::new();
+    let mut gpu = gpu_backend(scene, &sim, &mut warnings)?;
     let obj_dir = dir.join("obj");
     if scene.output.obj {
         std::fs::create_dir(&obj_dir).map_err(|e| Error::io(&obj_dir, "cannot create", e))?;
     }
+    let mut writer = scene.output.obj.then(|| {
+        let garments = sim.model().garments.clone();
+        match gpu {
+            Some(_) => FrameWriter::spawn(obj_dir.clone(), garments),
+            None => FrameWriter::inline(obj_dir.clone(), garments),
+        }
+    });
     let mut report = empty_report(scene, options, &sim, threads);
+    report.warnings = warnings;
+    if let Some(g) = &gpu {
+        let info = g.adapter_info();
+        report.backend.kind = "gpu";
+        report.backend.adapter = Some(Adapter {
+            name: info.name.clone(),
+            device_type: format!("{:?}", info.device_type),
+            driver: format!("{} {}", info.driver, info.driver_info)
+                .trim()
+                .to_string(),
+            backend: format!("{:?}", info.backend),
+        });
+    }
     let initial_energy = sim.energy();
     let progress = progress_bar(scene.frames as u64, options.progress);
     let mut frame_ms = Vec::with_capacity(scene.frames as usize);
@@ -95,7 +141,10 @@ fn run(
 
     for frame in 1..=scene.frames {
         let start = Instant::now();
-        sim.step_frame();
+        match &mut gpu {
+            Some(g) => g.step_frame(&mut sim)?,
+            None => sim.step_frame(),
+        }
         frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
 
         let error = sim.constraint_error();
@@ -127,14 +176,14 @@ fn run(
             report.failure = Some(Failure { frame, reason });
             break;
         }
-        if scene.output.obj {
-            let positions = sim.export_positions();
-            for g in &sim.model().garments {
-                obj::write_frame(&obj_dir, g, frame, &positions[g.export.clone()])?;
-            }
+        if let Some(w) = &mut writer {
+            w.write(frame, sim.export_positions())?;
         }
         report.frames_baked = frame;
         progress.inc(1);
+    }
+    if let Some(w) = &mut writer {
+        w.finish()?;
     }
     progress.finish_and_clear();
     report.ms_per_frame = Timing::of(&frame_ms);
@@ -156,6 +205,7 @@ fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads:
         backend: Backend {
             kind: "cpu",
             threads,
+            adapter: None,
         },
         solver: scene.solver.clone(),
         integrator: scene.integrator,
@@ -189,6 +239,7 @@ fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads:
         worst_penetrations: Vec::new(),
         stable: true,
         failure: None,
+        warnings: Vec::new(),
         residuals: None,
         outputs: Outputs {
             obj: scene.output.obj.then(|| "obj".to_string()),

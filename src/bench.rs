@@ -119,3 +119,80 @@ pub fn time_frames(
         })
     })
 }
+
+/// One row of `drape bench sizes`: a solver on a backend at one cloth size.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SizeTiming {
+    pub backend: String,
+    pub solver: &'static str,
+    pub particles: usize,
+    /// Local step + one sweep, on scene E's relaxation at this size.
+    pub us_per_iteration: f64,
+    /// A frame of scene H's hanging cloth at this size (its substeps and iterations).
+    pub ms_per_frame: f64,
+}
+
+/// Scene `base` with its one garment resized to `n` × `n` particles over the same metre.
+pub fn resized(base: &Scene, n: u32) -> Scene {
+    let mut scene = base.clone();
+    scene.garments[0].resolution = vec![n, n];
+    scene.output.residuals = false;
+    scene
+}
+
+/// Times `kind` at `n` × `n` particles on the CPU (`gpu` None) or a GPU: µs per iteration over
+/// `iterations` iterations of scene E's relaxation, and ms per frame over `frames` frames of H.
+pub fn time_size(
+    kind: SolverKind,
+    n: u32,
+    iterations: u32,
+    frames: u32,
+    gpu: Option<&dyn Fn() -> Result<crate::gpu::GpuContext>>,
+) -> Result<SizeTiming> {
+    use crate::gpu::GpuSimulation;
+    let mut e = resized(
+        &crate::scene::reference::load(crate::scene::reference::ENLARGED_CLOTH, "e"),
+        n,
+    );
+    e.solver.kind = kind;
+    e.solver.iterations = iterations;
+    let mut h = resized(
+        &crate::scene::reference::load(crate::scene::reference::HANGING_CLOTH, "h"),
+        n,
+    );
+    h.solver.kind = kind;
+    let mut backend = "cpu".to_string();
+    // Runs `count` frames of `scene` after one warm-up frame; returns seconds per frame.
+    let mut run = |scene: &Scene, count: u32| -> Result<f64> {
+        let mut sim = Simulation::new(scene);
+        match gpu {
+            Some(open) => {
+                let mut g = GpuSimulation::new(open()?, &sim)?;
+                backend = format!("gpu: {}", g.adapter());
+                g.step_frame(&mut sim)?;
+                let start = Instant::now();
+                for _ in 0..count {
+                    g.step_frame(&mut sim)?;
+                }
+                Ok(start.elapsed().as_secs_f64() / count as f64)
+            }
+            None => {
+                sim.step_frame();
+                let start = Instant::now();
+                for _ in 0..count {
+                    sim.step_frame();
+                }
+                Ok(start.elapsed().as_secs_f64() / count as f64)
+            }
+        }
+    };
+    let per_iteration = run(&e, 2)? / iterations as f64;
+    let per_frame = run(&h, frames)?;
+    Ok(SizeTiming {
+        backend,
+        solver: kind.name(),
+        particles: (n * n) as usize,
+        us_per_iteration: per_iteration * 1e6,
+        ms_per_frame: per_frame * 1e3,
+    })
+}

@@ -31,6 +31,9 @@ pub enum Error {
         action: &'static str,
         source: std::io::Error,
     },
+    /// The GPU could not be used: no adapter, device lost, a buffer too large, a shader error.
+    #[error("GPU: {reason}")]
+    Gpu { reason: String },
     /// A command-line value is impossible (e.g. `--frames 0`).
     #[error("{flag}: {reason}")]
     InvalidArgument { flag: String, reason: String },
@@ -44,7 +47,7 @@ impl Error {
             | Error::InvalidField { .. }
             | Error::InvalidArgument { .. } => 2,
             Error::Io { action, .. } if *action == "cannot read" => 2,
-            Error::Io { .. } => 1,
+            Error::Io { .. } | Error::Gpu { .. } => 1,
         }
     }
 

@@ -6,7 +6,8 @@
 //! 1. [`scene`]: read and validate the scene file (defaults fill everything left out).
 //! 2. [`garment`]: build each garment's particle grid, springs and colouring.
 //! 3. [`sim`]: lay the garments out for the solver ([`sim::Model`], [`sim::State`]) and step:
-//!    predict (Verlet) → solve (Projective Dynamics / PBD) → [`collide`] → commit.
+//!    predict (Verlet) → solve (Projective Dynamics / PBD) → [`collide`] → commit; on the CPU,
+//!    or with the same stages in compute shaders on the GPU ([`gpu`]).
 //! 4. [`export`]: write each frame (OBJ sequences) into a staging folder.
 //! 5. [`report`]: `report.json` with counts, timings, accuracy and stability.
 //!
@@ -18,6 +19,7 @@ pub mod collide;
 pub mod error;
 pub mod export;
 pub mod garment;
+pub mod gpu;
 pub mod report;
 pub mod scene;
 pub mod sim;

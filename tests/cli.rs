@@ -5,7 +5,7 @@ mod common;
 
 use common::{drape, stderr, temp_dir, write};
 
-const GOOD: &str = r#"{ "name": "small", "frames": 3,
+const GOOD: &str = r#"{ "name": "small", "frames": 3, "backend": "cpu",
   "garments": [{ "name": "cloth", "resolution": [6, 5], "pins": [[0, 0], [-1, 0]] }] }"#;
 
 /// Runs `drape bake` on scene text that must be rejected; returns stderr.
@@ -67,6 +67,49 @@ fn bake_writes_obj_frames_and_a_report() {
     );
     assert!(again.status.success(), "{}", stderr(&again));
     assert!(!bake.join("obj/cloth_0003.obj").exists());
+}
+
+#[test]
+fn gpu_backend_bakes_or_says_why_not() {
+    // On lavapipe (CI) or a real GPU this bakes on the GPU and the report names the adapter;
+    // without any Vulkan adapter it fails with exit 1 and a message, never a panic.
+    let dir = temp_dir();
+    write(dir.path(), "scene.json", GOOD);
+    let out = drape(
+        dir.path(),
+        &["bake", "scene.json", "--out", "gpu", "--backend", "gpu"],
+    );
+    if out.status.success() {
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("gpu/report.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(report["backend"]["kind"], "gpu");
+        assert!(report["backend"]["adapter"]["name"]
+            .as_str()
+            .is_some_and(|n| !n.is_empty()));
+        assert!(dir.path().join("gpu/obj/cloth_0003.obj").is_file());
+    } else {
+        assert_eq!(out.status.code(), Some(1));
+        assert!(stderr(&out).contains("GPU"), "{}", stderr(&out));
+        assert!(!dir.path().join("gpu").exists());
+    }
+    // Sequential Gauss-Seidel has no GPU form: a clear message, not a silent CPU run.
+    let gs = drape(
+        dir.path(),
+        &[
+            "bake",
+            "scene.json",
+            "--out",
+            "gs",
+            "--backend",
+            "gpu",
+            "--solver",
+            "gs",
+        ],
+    );
+    assert_eq!(gs.status.code(), Some(1));
+    assert!(stderr(&gs).contains("GPU"), "{}", stderr(&gs));
 }
 
 #[test]

@@ -65,6 +65,18 @@ pub struct BakeArgs {
     /// Worker threads (default: every core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Where to simulate, overriding the scene's `backend`: `gpu` takes any adapter (software
+    /// ones too), `auto` a hardware GPU when there is one, else the CPU.
+    #[arg(long, value_enum)]
+    pub backend: Option<BackendArg>,
+}
+
+/// Where to simulate.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackendArg {
+    Cpu,
+    Gpu,
+    Auto,
 }
 
 #[derive(Args, Debug)]
@@ -90,10 +102,18 @@ pub struct BenchArgs {
     /// Write the results as CSV here too.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// `sizes`: grid edges to time (n × n particles).
+    #[arg(long, value_delimiter = ',', default_values_t = [100u32, 316, 1000])]
+    pub sizes: Vec<u32>,
+    /// `sizes`: backends to time; `gpu` uses any adapter (software ones too).
+    #[arg(long, value_delimiter = ',', value_enum, default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
+    pub backends: Vec<BackendArg>,
 }
 
-#[derive(ValueEnum, Clone, Copy, Debug)]
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BenchWhat {
     /// Every solver on scenes E (µs per iteration), H and S (ms per frame and stretch).
     Solvers,
+    /// Every backend and parallel solver at 10 000, 100 000 and 1 000 000 particles.
+    Sizes,
 }

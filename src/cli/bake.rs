@@ -1,12 +1,20 @@
 //! `drape bake`: simulate a scene and write its frames and report.
 
-use super::args::BakeArgs;
+use super::args::{BackendArg, BakeArgs};
 use super::resolve;
 use drape::bake::{bake, BakeOptions};
+use drape::scene::BackendKind;
 use std::path::PathBuf;
 
 pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
-    let (scene, scene_file) = resolve::scene(&args.scene)?;
+    let (mut scene, scene_file) = resolve::scene(&args.scene)?;
+    if let Some(b) = args.backend {
+        scene.backend = match b {
+            BackendArg::Cpu => BackendKind::Cpu,
+            BackendArg::Gpu => BackendKind::Gpu,
+            BackendArg::Auto => BackendKind::Auto,
+        };
+    }
     let out = args
         .out
         .unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
@@ -18,15 +26,21 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     };
     let result = bake(&scene, &options)?;
     let r = &result.report;
+    for w in &r.warnings {
+        eprintln!("drape: warning: {w}");
+    }
+    let on = match &r.backend.adapter {
+        Some(a) => format!("GPU {} ({})", a.name, a.device_type),
+        None => format!("CPU, {} threads", r.backend.threads),
+    };
     println!(
-        "baked {} of {} frames of '{}' into {}: {} particles, {:.2} ms per frame (median, {} threads)",
+        "baked {} of {} frames of '{}' into {}: {} particles, {:.2} ms per frame (median, {on})",
         r.frames_baked,
         r.frames_requested,
         r.scene,
         result.out.display(),
         r.particles,
         r.ms_per_frame.median,
-        r.backend.threads,
     );
     if let Some(last) = &r.last_frame {
         println!(

@@ -1,13 +1,16 @@
 //! `drape bench solvers`: µs per iteration on scene E and ms per frame with stretch on scenes H
 //! and S, for every solver and thread count; printed and optionally written as CSV.
 
-use super::args::{BenchArgs, BenchWhat};
-use drape::bench::{time_frames, time_iterations, SOLVERS};
+use super::args::{BackendArg, BenchArgs, BenchWhat};
+use drape::bench::{time_frames, time_iterations, time_size, SOLVERS};
 use drape::scene::reference;
+use drape::scene::SolverKind;
 use std::fmt::Write as _;
 
 pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
-    let BenchWhat::Solvers = args.what;
+    if args.what == BenchWhat::Sizes {
+        return sizes(&args);
+    }
     let threads = if args.threads.is_empty() {
         let all = std::thread::available_parallelism().map_or(1, |n| n.get());
         if all > 1 {
@@ -90,6 +93,43 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
                     r.inside,
                     r.deepest,
                     r.stable
+                );
+            }
+        }
+    }
+    if let Some(path) = &args.csv {
+        std::fs::write(path, csv).map_err(|e| drape::Error::io(path, "cannot write", e))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(0)
+}
+
+/// `drape bench sizes`: µs per iteration and ms per frame for each backend and parallel solver at
+/// each size. Iterations and frames shrink with size so a software GPU finishes in minutes.
+fn sizes(args: &BenchArgs) -> anyhow::Result<i32> {
+    let mut csv = String::from("backend,solver,particles,us_per_iteration,ms_per_frame\n");
+    println!(
+        "{:<44} {:<7} {:>10} {:>14} {:>10}",
+        "backend", "solver", "particles", "µs/iteration", "ms/frame"
+    );
+    let open = || drape::gpu::GpuContext::new(false);
+    for &backend in &args.backends {
+        for &n in &args.sizes {
+            let particles = (n as u64) * (n as u64);
+            let iterations = if particles >= 1_000_000 { 20 } else { 100 };
+            let frames = if particles >= 1_000_000 { 1 } else { 3 };
+            for kind in [SolverKind::Rbgs, SolverKind::Jacobi, SolverKind::Pbd] {
+                let gpu: Option<&dyn Fn() -> drape::Result<drape::gpu::GpuContext>> =
+                    (backend != BackendArg::Cpu).then_some(&open as _);
+                let r = time_size(kind, n, iterations, frames, gpu)?;
+                println!(
+                    "{:<44} {:<7} {:>10} {:>14.1} {:>10.2}",
+                    r.backend, r.solver, r.particles, r.us_per_iteration, r.ms_per_frame
+                );
+                let _ = writeln!(
+                    csv,
+                    "{},{},{},{:.3},{:.3}",
+                    r.backend, r.solver, r.particles, r.us_per_iteration, r.ms_per_frame
                 );
             }
         }

@@ -3,5 +3,7 @@
 
 pub mod obj;
 pub mod staging;
+pub mod writer;
 
 pub use staging::Staging;
+pub use writer::FrameWriter;

@@ -36,6 +36,8 @@ pub struct Report {
     pub worst_penetrations: Vec<ColliderPenetration>,
     pub stable: bool,
     pub failure: Option<Failure>,
+    /// Things the user should know, e.g. that `auto` fell back to the CPU and why.
+    pub warnings: Vec<String>,
     /// Total squared error after every sweep, one list per frame (when the scene asks for it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residuals: Option<Vec<Vec<f64>>>,
@@ -45,10 +47,22 @@ pub struct Report {
 /// Where the simulation ran.
 #[derive(Clone, Debug, Serialize)]
 pub struct Backend {
-    /// `"cpu"`.
+    /// `"cpu"` or `"gpu"`.
     pub kind: &'static str,
-    /// Worker threads of the CPU solver.
+    /// Worker threads of the CPU (which also measures and exports on the GPU backend).
     pub threads: usize,
+    /// The GPU adapter, on the GPU backend.
+    pub adapter: Option<Adapter>,
+}
+
+/// A GPU adapter as wgpu reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Adapter {
+    pub name: String,
+    /// `"DiscreteGpu"`, `"IntegratedGpu"`, `"VirtualGpu"`, `"Cpu"` (software, e.g. lavapipe) or `"Other"`.
+    pub device_type: String,
+    pub driver: String,
+    pub backend: String,
 }
 
 /// One garment's counts.

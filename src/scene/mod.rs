@@ -47,6 +47,20 @@ pub struct Scene {
     pub colliders: Vec<ColliderSpec>,
     /// What to write.
     pub output: OutputSpec,
+    /// Where to simulate. Default `"auto"`: a hardware GPU when there is one, else the CPU.
+    pub backend: BackendKind,
+}
+
+/// Where the simulation runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackendKind {
+    /// The multi-threaded CPU solvers.
+    Cpu,
+    /// wgpu compute on any adapter, software ones (lavapipe) included.
+    Gpu,
+    /// A hardware GPU adapter when one exists and the solver has a GPU form, else the CPU.
+    Auto,
 }
 
 impl Default for Scene {
@@ -64,6 +78,7 @@ impl Default for Scene {
             garments: Vec::new(),
             colliders: Vec::new(),
             output: OutputSpec::default(),
+            backend: BackendKind::Auto,
         }
     }
 }

@@ -174,6 +174,24 @@ impl Simulation {
         metrics::energy(&self.model, &self.state, self.gravity)
     }
 
+    /// The solver's settings.
+    pub fn solver_settings(&self) -> &SolverSettings {
+        &self.solver.settings
+    }
+
+    /// Per particle, the inertia a = m/h² and 1/(a + Σw) of the solver's rows (for the GPU).
+    pub fn solver_rows(&self) -> (&[f32], &[f32]) {
+        self.solver.rows()
+    }
+
+    /// Step h [s], velocity kept per step and g·h [m/s] (for the GPU).
+    pub fn integration_constants(&self) -> (f32, f32, Vec4) {
+        match &self.verlet {
+            Some(v) => (v.step, v.keep, v.gravity_step),
+            None => (self.step, 1.0, Vec4::ZERO),
+        }
+    }
+
     /// True when particles move under time integration.
     pub fn integrating(&self) -> bool {
         self.verlet.is_some()
@@ -227,10 +245,10 @@ impl Stages<'_> {
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
                 let tethers = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
-                for &(_, pin, rest) in &model.tethers[tethers] {
-                    let p = pin as usize;
+                for t in &model.tethers[tethers] {
+                    let p = t.pin as usize;
                     let offset = (x - b.x.get(p)) + (d - b.target.get(p));
-                    d += constraint::tether_correction(offset, rest);
+                    d += constraint::tether_correction(offset, t.rest);
                 }
                 for c in self.colliders {
                     d = c.resolve(x, d, model.contact_radius[i]);

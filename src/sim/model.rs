@@ -27,6 +27,16 @@ pub struct ModelSpring {
 
 const _: () = assert!(std::mem::size_of::<ModelSpring>() == 12);
 
+/// A long-range attachment in storage indices (12 bytes): `particle` stays within `rest` of `pin`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ModelTether {
+    pub particle: u32,
+    pub pin: u32,
+    /// Rest distance [m].
+    pub rest: f32,
+}
+
 /// One spring seen from one of its particles: 12 bytes, read by every gather-style solver.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -99,9 +109,8 @@ pub struct Model {
     /// Number of structural (stretch) springs at the head of `springs`.
     pub structural_springs: usize,
     pub garments: Vec<GarmentRange>,
-    /// Long-range attachments, storage indices: (particle, pin, rest distance [m]), sorted by
-    /// particle so a particle's tethers are adjacent.
-    pub tethers: Vec<(u32, u32, f32)>,
+    /// Long-range attachments, sorted by particle so a particle's tethers are adjacent.
+    pub tethers: Vec<ModelTether>,
     /// Start of each particle's tethers in `tethers`; length = particles + 1.
     pub tether_start: Vec<u32>,
 }
@@ -165,11 +174,11 @@ impl Model {
                 model.inv_mass[model.storage_of[base + p as usize] as usize] = 0.0;
             }
             for t in &g.tethers {
-                model.tethers.push((
-                    model.storage_of[base + t.particle as usize],
-                    model.storage_of[base + t.pin as usize],
-                    t.rest,
-                ));
+                model.tethers.push(ModelTether {
+                    particle: model.storage_of[base + t.particle as usize],
+                    pin: model.storage_of[base + t.pin as usize],
+                    rest: t.rest,
+                });
             }
             for s in &g.springs {
                 let spring = ModelSpring {
@@ -192,10 +201,10 @@ impl Model {
         model.spring_weight = springs.iter().map(|s| s.2).collect();
         model.springs = springs.into_iter().map(|s| s.1).collect();
         model.build_slots();
-        model.tethers.sort_by_key(|t| (t.0, t.1));
+        model.tethers.sort_by_key(|t| (t.particle, t.pin));
         model.tether_start = vec![0; n + 1];
         for t in &model.tethers {
-            model.tether_start[t.0 as usize + 1] += 1;
+            model.tether_start[t.particle as usize + 1] += 1;
         }
         for i in 0..n {
             model.tether_start[i + 1] += model.tether_start[i];
@@ -301,13 +310,13 @@ impl Model {
         assert!(
             self.tethers
                 .iter()
-                .all(|t| (t.0 as usize) < n && (t.1 as usize) < n),
+                .all(|t| (t.particle as usize) < n && (t.pin as usize) < n),
             "model: tether out of range"
         );
         assert!(
             self.tethers
                 .iter()
-                .all(|t| self.inv_mass[t.1 as usize] == 0.0),
+                .all(|t| self.inv_mass[t.pin as usize] == 0.0),
             "model: a tether must end at a pinned particle"
         );
     }

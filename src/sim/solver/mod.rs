@@ -115,6 +115,11 @@ impl Solver {
         }
     }
 
+    /// Per particle, the inertia a_i and 1/(a_i + Σ w) of its row.
+    pub fn rows(&self) -> (&[f32], &[f32]) {
+        (&self.inertia, &self.diag_inv)
+    }
+
     /// One inner iteration of the global step with the current projections.
     pub(crate) fn sweep(&self, m: &Member, model: &Model, b: &Buffers) {
         let omega = self.settings.omega;

@@ -1,0 +1,106 @@
+// Shared by every drape kernel: the only definition of the GPU structs. Each mirrors a Rust
+// `#[repr(C)]` Pod struct in src/gpu/layout.rs (sizes checked by tests/wgsl_layout.rs), and each
+// function mirrors, by name, a pure function of src/sim/constraint.rs.
+
+// Per-dispatch constants (uniform, one 256-byte slot per dispatch kind, dynamic offset).
+struct Params {
+    gravity_step: vec4<f32>,   // g·h [m/s]
+    particles: u32,
+    springs: u32,
+    structural: u32,           // structural springs at the head of `springs`
+    colliders: u32,
+    range_start: u32,          // colour range of a sweep
+    range_end: u32,
+    predict_next: u32,         // finish: also predict the next substep
+    _pad: u32,
+    step: f32,                 // h [s]
+    inv_step: f32,             // 1/h
+    keep: f32,                 // velocity kept per step, exp(-damping h)
+    omega: f32,                // over-relaxation
+}
+
+// Static per-particle data.
+struct Particle {
+    inv_mass: f32,             // 0 for pinned particles
+    inertia: f32,              // a = m/h² (0 without integration)
+    diag_inv: f32,             // 1/(a + Σ w), 0 for particles that never move
+    contact_radius: f32,       // [m]
+}
+
+// One spring seen from one of its particles (12 bytes).
+struct Slot {
+    neighbour: u32,
+    spring: u32,               // spring index; bit 31 set at the spring's b end
+    weight: f32,
+}
+
+// A spring (12 bytes).
+struct Spring {
+    a: u32,
+    b: u32,
+    rest: f32,
+}
+
+// A long-range attachment (12 bytes).
+struct Tether {
+    particle: u32,
+    pin: u32,
+    rest: f32,
+}
+
+// An analytic collider (32 bytes): kind 0 plane (normal, offset), kind 1 sphere (center, radius).
+struct Collider {
+    kind: u32,
+    friction: f32,
+    radius: f32,
+    offset: f32,
+    vector: vec4<f32>,         // plane normal or sphere center
+}
+
+const B_END: u32 = 0x80000000u;
+const TINY_LENGTH: f32 = 1e-12;
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> x: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> velocity: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> delta: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> target_delta: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> projection: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> scratch: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> particle: array<Particle>;
+@group(0) @binding(8) var<storage, read> slot_start: array<u32>;
+@group(0) @binding(9) var<storage, read> slots: array<Slot>;
+@group(0) @binding(10) var<storage, read> springs: array<Spring>;
+@group(0) @binding(11) var<storage, read> tether_start: array<u32>;
+@group(0) @binding(12) var<storage, read> tethers: array<Tether>;
+@group(0) @binding(13) var<storage, read> colliders: array<Collider>;
+
+// L / |e| for an edge of squared length `length_squared` (0 when too short to have a direction).
+fn spring_projection_scale(length_squared: f32, rest: f32) -> f32 {
+    if (length_squared > TINY_LENGTH * TINY_LENGTH) {
+        return rest / sqrt(length_squared);
+    }
+    return 0.0;
+}
+
+// Move from `old` past the Gauss-Seidel value `new` by factor ω.
+fn over_relax(old: vec4<f32>, new_value: vec4<f32>, omega: f32) -> vec4<f32> {
+    return old + (new_value - old) * omega;
+}
+
+// +1 at a spring's a end, -1 at its b end.
+fn slot_sign(spring: u32) -> f32 {
+    return select(1.0, -1.0, (spring & B_END) != 0u);
+}
+
+// The Gauss-Seidel row of particle i: (a t + Σ w (Δ_k ± g_k)) / (a + Σ w), reading Δ or scratch.
+fn spring_row_solve(i: u32) -> vec4<f32> {
+    let p = particle[i];
+    var acc = target_delta[i] * p.inertia;
+    for (var k = slot_start[i]; k < slot_start[i + 1u]; k = k + 1u) {
+        let s = slots[k];
+        let g = projection[s.spring & ~B_END] * slot_sign(s.spring);
+        acc = acc + (delta[s.neighbour] + g) * s.weight;
+    }
+    return acc * p.diag_inv;
+}

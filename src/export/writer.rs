@@ -1,0 +1,95 @@
+//! Frames are written on their own thread while the next frame simulates: the bake hands over
+//! each frame's positions (double-buffered through a channel of two) and only waits when the
+//! writer falls two frames behind. The first error stops the writer and is returned to the bake.
+//!
+//! That pays while the GPU simulates and the CPU waits. When the CPU solver already keeps every
+//! core busy, a writer thread only takes turns with it (measured on scene H with 2 cores:
+//! 9.9 → 19 ms per simulated frame and a longer bake), so there frames are written in line.
+
+use super::obj;
+use crate::error::Result;
+use crate::sim::model::GarmentRange;
+use glam::Vec3;
+use std::path::PathBuf;
+use std::sync::mpsc::{sync_channel, SyncSender};
+use std::thread::JoinHandle;
+
+/// Writes OBJ frames, on its own thread or in line.
+pub struct FrameWriter {
+    frames: Option<SyncSender<(u32, Vec<Vec3>)>>,
+    thread: Option<JoinHandle<Result<()>>>,
+    /// Where to write in line (when no thread was spawned).
+    inline: Option<(PathBuf, Vec<GarmentRange>)>,
+}
+
+/// Writes one frame of every garment.
+fn write_all(
+    dir: &std::path::Path,
+    garments: &[GarmentRange],
+    frame: u32,
+    positions: &[Vec3],
+) -> Result<()> {
+    for g in garments {
+        obj::write_frame(dir, g, frame, &positions[g.export.clone()])?;
+    }
+    Ok(())
+}
+
+impl FrameWriter {
+    /// A writer that writes each frame when it is handed over.
+    pub fn inline(dir: PathBuf, garments: Vec<GarmentRange>) -> FrameWriter {
+        FrameWriter {
+            frames: None,
+            thread: None,
+            inline: Some((dir, garments)),
+        }
+    }
+
+    /// Starts a writer of `garments`' frames into `dir`.
+    pub fn spawn(dir: PathBuf, garments: Vec<GarmentRange>) -> FrameWriter {
+        let (send, receive) = sync_channel::<(u32, Vec<Vec3>)>(2);
+        let thread = std::thread::spawn(move || {
+            for (frame, positions) in receive {
+                write_all(&dir, &garments, frame, &positions)?;
+            }
+            Ok(())
+        });
+        FrameWriter {
+            frames: Some(send),
+            thread: Some(thread),
+            inline: None,
+        }
+    }
+
+    /// Queues frame `frame` (positions in export order). Fails with the writer's error if it
+    /// stopped.
+    pub fn write(&mut self, frame: u32, positions: Vec<Vec3>) -> Result<()> {
+        if let Some((dir, garments)) = &self.inline {
+            return write_all(dir, garments, frame, &positions);
+        }
+        let sent = self
+            .frames
+            .as_ref()
+            .is_some_and(|s| s.send((frame, positions)).is_ok());
+        if sent {
+            Ok(())
+        } else {
+            self.finish()
+        }
+    }
+
+    /// Waits until every queued frame is written.
+    pub fn finish(&mut self) -> Result<()> {
+        self.frames = None;
+        match self.thread.take() {
+            Some(t) => t.join().expect("the frame writer does not panic"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for FrameWriter {
+    fn drop(&mut self) {
+        let _ = self.finish();
+    }
+}

@@ -1,0 +1,152 @@
+//! Every compute pipeline, built once per device from the WGSL in `shaders/` (each kernel file
+//! is compiled together with `shaders/common.wgsl`, the one definition of the shared structs).
+
+use super::layout::GpuParams;
+
+/// The shared WGSL: structs, bindings and constraint functions.
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+
+/// Kernel files and their entry points.
+pub const KERNEL_FILES: [(&str, &str, &[&str]); 5] = [
+    (
+        "predict.wgsl",
+        include_str!("../../shaders/predict.wgsl"),
+        &["predict"],
+    ),
+    (
+        "project.wgsl",
+        include_str!("../../shaders/project.wgsl"),
+        &["project"],
+    ),
+    (
+        "sweep.wgsl",
+        include_str!("../../shaders/sweep.wgsl"),
+        &["sweep", "jacobi", "copy_scratch", "pbd"],
+    ),
+    (
+        "finish.wgsl",
+        include_str!("../../shaders/finish.wgsl"),
+        &["finish", "finish_static"],
+    ),
+    (
+        "residual.wgsl",
+        include_str!("../../shaders/residual.wgsl"),
+        &["residual_partial", "residual_total"],
+    ),
+];
+
+/// The full source of one kernel file: the common part, then the file.
+pub fn source(file: &str) -> String {
+    let (_, text, _) = KERNEL_FILES
+        .iter()
+        .find(|(f, _, _)| *f == file)
+        .expect("known kernel file");
+    format!("{COMMON}\n{text}")
+}
+
+/// Bindings of group 0: 1 uniform, 6 read-write and 7 read-only storage buffers.
+const READ_WRITE: std::ops::RangeInclusive<u32> = 1..=6;
+const READ_ONLY: std::ops::RangeInclusive<u32> = 7..=13;
+
+/// The pipelines of every stage and the bind group layouts they share.
+pub struct Kernels {
+    pub group0: wgpu::BindGroupLayout,
+    pub group1: wgpu::BindGroupLayout,
+    pub predict: wgpu::ComputePipeline,
+    pub project: wgpu::ComputePipeline,
+    pub sweep: wgpu::ComputePipeline,
+    pub jacobi: wgpu::ComputePipeline,
+    pub copy_scratch: wgpu::ComputePipeline,
+    pub pbd: wgpu::ComputePipeline,
+    pub finish: wgpu::ComputePipeline,
+    pub finish_static: wgpu::ComputePipeline,
+    pub residual_partial: wgpu::ComputePipeline,
+    pub residual_total: wgpu::ComputePipeline,
+}
+
+fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl Kernels {
+    /// Compiles every kernel for `device`.
+    pub fn new(device: &wgpu::Device) -> Kernels {
+        let mut entries = vec![wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: true,
+                min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<GpuParams>() as u64),
+            },
+            count: None,
+        }];
+        entries.extend(READ_WRITE.map(|b| storage(b, false)));
+        entries.extend(READ_ONLY.map(|b| storage(b, true)));
+        let group0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("drape state and model"),
+            entries: &entries,
+        });
+        let group1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("drape residuals"),
+            entries: &[storage(0, false), storage(1, false), storage(2, false)],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("drape"),
+            bind_group_layouts: &[Some(&group0), Some(&group1)],
+            immediate_size: 0,
+        });
+        let modules: Vec<(&str, wgpu::ShaderModule)> = KERNEL_FILES
+            .iter()
+            .map(|(file, _, _)| {
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(file),
+                    source: wgpu::ShaderSource::Wgsl(source(file).into()),
+                });
+                (*file, module)
+            })
+            .collect();
+        let pipeline = |entry: &str| {
+            let (file, _, _) = KERNEL_FILES
+                .iter()
+                .find(|(_, _, entries)| entries.contains(&entry))
+                .expect("entry point listed");
+            let module = &modules
+                .iter()
+                .find(|(f, _)| f == file)
+                .expect("module built")
+                .1;
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&layout),
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Kernels {
+            predict: pipeline("predict"),
+            project: pipeline("project"),
+            sweep: pipeline("sweep"),
+            jacobi: pipeline("jacobi"),
+            copy_scratch: pipeline("copy_scratch"),
+            pbd: pipeline("pbd"),
+            finish: pipeline("finish"),
+            finish_static: pipeline("finish_static"),
+            residual_partial: pipeline("residual_partial"),
+            residual_total: pipeline("residual_total"),
+            group0,
+            group1,
+        }
+    }
+}

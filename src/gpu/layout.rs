@@ -1,0 +1,76 @@
+//! Rust mirrors of the structs in `shaders/common.wgsl`: `#[repr(C)]`, bytemuck `Pod`, with
+//! explicit padding, each size checked at compile time here and against the WGSL by
+//! `tests/wgsl_layout.rs`. Springs, slots and tethers upload straight from `sim::Model`.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Per-dispatch constants (WGSL `Params`), one per 256-byte uniform slot.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuParams {
+    /// g·h [m/s], w = 0.
+    pub gravity_step: [f32; 4],
+    pub particles: u32,
+    pub springs: u32,
+    pub structural: u32,
+    pub colliders: u32,
+    pub range_start: u32,
+    pub range_end: u32,
+    pub predict_next: u32,
+    pub _pad: u32,
+    pub step: f32,
+    pub inv_step: f32,
+    pub keep: f32,
+    pub omega: f32,
+}
+
+/// Static per-particle data (WGSL `Particle`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuParticle {
+    pub inv_mass: f32,
+    /// a = m/h² [kg/s²].
+    pub inertia: f32,
+    /// 1/(a + Σw), 0 for particles that never move.
+    pub diag_inv: f32,
+    pub contact_radius: f32,
+}
+
+/// An analytic collider (WGSL `Collider`): kind 0 plane, 1 sphere.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuCollider {
+    pub kind: u32,
+    pub friction: f32,
+    pub radius: f32,
+    /// Plane offset n·x.
+    pub offset: f32,
+    /// Plane normal or sphere centre, w = 0.
+    pub vector: [f32; 4],
+}
+
+/// Bytes between two dispatches' parameters: wgpu's minimum uniform offset alignment.
+pub const PARAMS_STRIDE: u64 = 256;
+
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuParticle>() == 16);
+const _: () = assert!(std::mem::size_of::<GpuCollider>() == 32);
+const _: () = assert!(std::mem::size_of::<crate::sim::model::Slot>() == 12);
+const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelSpring>() == 12);
+const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelTether>() == 12);
+
+/// Every WGSL struct with the size of its Rust mirror, for the layout test.
+pub const MIRRORS: [(&str, usize); 6] = [
+    ("Params", std::mem::size_of::<GpuParams>()),
+    ("Particle", std::mem::size_of::<GpuParticle>()),
+    ("Collider", std::mem::size_of::<GpuCollider>()),
+    ("Slot", std::mem::size_of::<crate::sim::model::Slot>()),
+    (
+        "Spring",
+        std::mem::size_of::<crate::sim::model::ModelSpring>(),
+    ),
+    (
+        "Tether",
+        std::mem::size_of::<crate::sim::model::ModelTether>(),
+    ),
+];

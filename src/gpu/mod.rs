@@ -1,0 +1,15 @@
+//! The GPU backend: Projective Dynamics with red-black Gauss-Seidel (and Jacobi, PBD) in wgpu
+//! compute shaders (`shaders/`), the CPU solvers of `sim` being the reference it must match.
+//!
+//! - [`context`]: adapter and device, errors, the `auto` choice;
+//! - [`layout`]: Pod mirrors of the WGSL structs;
+//! - [`kernels`]: every pipeline, built once;
+//! - [`solver`]: a scene's buffers and the frame loop.
+
+pub mod context;
+pub mod kernels;
+pub mod layout;
+pub mod solver;
+
+pub use context::GpuContext;
+pub use solver::GpuSimulation;

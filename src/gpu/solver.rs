@@ -1,0 +1,439 @@
+//! The simulation loop on the GPU: the same stages as `sim::Simulation` (predict → project →
+//! sweep each colour → finish), one compute pass per stage, a whole frame recorded into one
+//! command buffer with no CPU waits, and positions (and residuals) read back once per frame.
+//!
+//! The CPU `Simulation` stays the owner of the model, the colliders and the state the bake
+//! measures and exports: after each frame the GPU's positions and velocities are copied into it,
+//! so every metric is computed by the same code for both backends.
+
+use super::context::GpuContext;
+use super::kernels::Kernels;
+use super::layout::{GpuCollider, GpuParams, GpuParticle, PARAMS_STRIDE};
+use crate::collide::Shape;
+use crate::error::{Error, Result};
+use crate::scene::SolverKind;
+use crate::sim::Simulation;
+use glam::Vec4;
+use wgpu::util::DeviceExt;
+
+/// Threads per workgroup of the per-particle and per-spring kernels (shaders use 64).
+const GROUP: u32 = 64;
+/// Threads per workgroup of the residual reduction.
+const REDUCE_GROUP: u32 = 256;
+
+/// Uniform slots: 0 = whole range, predict the next substep; 1 = last substep of a frame;
+/// 2 + c = colour c's range.
+const PARAMS_NEXT: u32 = 0;
+const PARAMS_LAST: u32 = 1;
+const PARAMS_COLOUR: u32 = 2;
+
+/// GPU buffers and bind groups of one simulation.
+pub struct GpuSimulation {
+    ctx: GpuContext,
+    kernels: Kernels,
+    x: wgpu::Buffer,
+    velocity: wgpu::Buffer,
+    residuals: wgpu::Buffer,
+    residual_count: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    group0: wgpu::BindGroup,
+    group1: wgpu::BindGroup,
+    particles: u32,
+    springs: u32,
+    structural: u32,
+    colour_ranges: Vec<(u32, u32)>,
+    /// Sweeps per frame, each with a residual when recording.
+    sweeps_per_frame: u32,
+}
+
+fn groups(count: u32, size: u32) -> u32 {
+    count.div_ceil(size).max(1)
+}
+
+impl GpuSimulation {
+    /// Uploads `sim`'s model and state to the GPU of `ctx`.
+    pub fn new(ctx: GpuContext, sim: &Simulation) -> Result<GpuSimulation> {
+        let settings = &sim.solver_settings();
+        if settings.kind == SolverKind::Gs {
+            return Err(Error::Gpu {
+                reason: "sequential Gauss-Seidel (gs) has no parallel GPU form: use rbgs, jacobi or pbd, or the cpu backend".into(),
+            });
+        }
+        let device = &ctx.device;
+        let model = sim.model();
+        let n = model.particle_count();
+        let limit = ctx.device.limits().max_storage_buffer_binding_size as usize;
+        if n * 16 > limit || model.slot.len() * 12 > limit {
+            return Err(Error::Gpu {
+                reason: format!(
+                    "{n} particles need {} MiB buffers; {} allows {} MiB",
+                    (model.slot.len() * 12).max(n * 16) >> 20,
+                    ctx.adapter.name,
+                    limit >> 20
+                ),
+            });
+        }
+        let kernels = Kernels::new(device);
+        let rw = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
+            // wgpu rejects empty bindings: keep one element of the largest struct (32 bytes).
+            let bytes = if bytes.is_empty() {
+                &[0u8; 32][..]
+            } else {
+                bytes
+            };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage,
+            })
+        };
+        let zeros = vec![Vec4::ZERO; n.max(1)];
+        let x = init("x", bytemuck::cast_slice(&sim.state.positions), rw);
+        let velocity = init("velocity", bytemuck::cast_slice(&sim.state.velocities), rw);
+        let delta = init("delta", bytemuck::cast_slice(&zeros), rw);
+        let target = init("target", bytemuck::cast_slice(&zeros), rw);
+        let projection = init(
+            "projection",
+            bytemuck::cast_slice(&vec![Vec4::ZERO; model.springs.len().max(1)]),
+            rw,
+        );
+        let scratch = init("scratch", bytemuck::cast_slice(&zeros), rw);
+        let read = wgpu::BufferUsages::STORAGE;
+        let (inertia, diag_inv) = sim.solver_rows();
+        let particle: Vec<GpuParticle> = (0..n)
+            .map(|i| GpuParticle {
+                inv_mass: model.inv_mass[i],
+                inertia: inertia[i],
+                diag_inv: diag_inv[i],
+                contact_radius: model.contact_radius[i],
+            })
+            .collect();
+        let particle = init("particle", bytemuck::cast_slice(&particle), read);
+        let slot_start = init("slot_start", bytemuck::cast_slice(&model.slot_start), read);
+        let slots = init("slots", bytemuck::cast_slice(&model.slot), read);
+        let springs = init("springs", bytemuck::cast_slice(&model.springs), read);
+        let tether_start = init(
+            "tether_start",
+            bytemuck::cast_slice(&model.tether_start),
+            read,
+        );
+        let tethers = init("tethers", bytemuck::cast_slice(&model.tethers), read);
+        let colliders: Vec<GpuCollider> = sim
+            .colliders
+            .iter()
+            .map(|c| match c.shape {
+                Shape::Plane { normal, offset } => GpuCollider {
+                    kind: 0,
+                    friction: c.friction,
+                    radius: 0.0,
+                    offset,
+                    vector: normal.extend(0.0).to_array(),
+                },
+                Shape::Sphere { center, radius } => GpuCollider {
+                    kind: 1,
+                    friction: c.friction,
+                    radius,
+                    offset: 0.0,
+                    vector: center.extend(0.0).to_array(),
+                },
+            })
+            .collect();
+        let colliders_buffer = init("colliders", bytemuck::cast_slice(&colliders), read);
+
+        let colour_ranges: Vec<(u32, u32)> = model
+            .colour_ranges
+            .iter()
+            .map(|r| (r.start as u32, r.end as u32))
+            .collect();
+        let (h, keep, gravity_step) = sim.integration_constants();
+        let base = GpuParams {
+            gravity_step: gravity_step.to_array(),
+            particles: n as u32,
+            springs: model.springs.len() as u32,
+            structural: model.structural_springs as u32,
+            colliders: colliders.len() as u32,
+            range_start: 0,
+            range_end: n as u32,
+            predict_next: 1,
+            _pad: 0,
+            step: h,
+            inv_step: 1.0 / h,
+            keep,
+            omega: settings.omega,
+        };
+        let mut params = vec![0u8; PARAMS_STRIDE as usize * (2 + colour_ranges.len())];
+        let mut put = |slot: u32, p: GpuParams| {
+            let at = (slot as u64 * PARAMS_STRIDE) as usize;
+            params[at..at + std::mem::size_of::<GpuParams>()]
+                .copy_from_slice(bytemuck::bytes_of(&p));
+        };
+        put(PARAMS_NEXT, base);
+        put(
+            PARAMS_LAST,
+            GpuParams {
+                predict_next: 0,
+                ..base
+            },
+        );
+        for (c, &(start, end)) in colour_ranges.iter().enumerate() {
+            put(
+                PARAMS_COLOUR + c as u32,
+                GpuParams {
+                    range_start: start,
+                    range_end: end,
+                    ..base
+                },
+            );
+        }
+        let params = init("params", &params, wgpu::BufferUsages::UNIFORM);
+
+        let sweeps_per_frame = sim.substeps
+            * settings.iterations
+            * if settings.kind == SolverKind::Pbd {
+                1
+            } else {
+                settings.inner_iterations
+            };
+        let structural = model.structural_springs as u32;
+        let partial = init(
+            "residual partial sums",
+            bytemuck::cast_slice(&vec![0f32; groups(structural, REDUCE_GROUP) as usize]),
+            rw,
+        );
+        let residuals = init(
+            "residuals",
+            bytemuck::cast_slice(&vec![0f32; sweeps_per_frame as usize]),
+            rw,
+        );
+        let residual_count = init("residual count", &[0u8; 4], rw);
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: (2 * n * 16 + 4 * sweeps_per_frame as usize) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+
+        let storage_buffers = [
+            &x,
+            &velocity,
+            &delta,
+            &target,
+            &projection,
+            &scratch,
+            &particle,
+            &slot_start,
+            &slots,
+            &springs,
+            &tether_start,
+            &tethers,
+            &colliders_buffer,
+        ];
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &params,
+                offset: 0,
+                size: wgpu::BufferSize::new(std::mem::size_of::<GpuParams>() as u64),
+            }),
+        }];
+        for (k, b) in storage_buffers.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: k as u32 + 1,
+                resource: b.as_entire_binding(),
+            });
+        }
+        let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("drape state and model"),
+            layout: &kernels.group0,
+            entries: &entries,
+        });
+        let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("drape residuals"),
+            layout: &kernels.group1,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: partial.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: residuals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: residual_count.as_entire_binding(),
+                },
+            ],
+        });
+        Ok(GpuSimulation {
+            ctx,
+            kernels,
+            x,
+            velocity,
+            residuals,
+            residual_count,
+            readback,
+            group0,
+            group1,
+            particles: n as u32,
+            springs: model.springs.len() as u32,
+            structural,
+            colour_ranges,
+            sweeps_per_frame,
+        })
+    }
+
+    /// The adapter's "name (type)".
+    pub fn adapter(&self) -> String {
+        self.ctx.describe()
+    }
+
+    /// The adapter's description.
+    pub fn adapter_info(&self) -> &wgpu::AdapterInfo {
+        &self.ctx.adapter
+    }
+
+    /// Runs one frame on the GPU and copies positions, velocities and (when `sim` records them)
+    /// per-sweep residuals back into `sim`.
+    pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
+        let encoder = self.record_frame(sim);
+        let n = self.particles as u64 * 16;
+        let mut encoder = encoder;
+        encoder.copy_buffer_to_buffer(&self.x, 0, &self.readback, 0, n);
+        encoder.copy_buffer_to_buffer(&self.velocity, 0, &self.readback, n, n);
+        let residual_bytes = 4 * self.sweeps_per_frame as u64;
+        if residual_bytes > 0 {
+            encoder.copy_buffer_to_buffer(
+                &self.residuals,
+                0,
+                &self.readback,
+                2 * n,
+                residual_bytes,
+            );
+        }
+        let scope = self
+            .ctx
+            .device
+            .push_error_scope(wgpu::ErrorFilter::Validation);
+        self.ctx.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(Error::Gpu {
+                reason: format!("{}: {e}", self.ctx.adapter.name),
+            });
+        }
+        let slice = self.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu {
+                reason: format!("{}: {e}", self.ctx.adapter.name),
+            })?;
+        {
+            let view = slice.get_mapped_range().map_err(|e| Error::Gpu {
+                reason: format!("readback: {e:?}"),
+            })?;
+            let floats: &[Vec4] = bytemuck::cast_slice(&view[..2 * n as usize]);
+            let (x, v) = floats.split_at(self.particles as usize);
+            sim.state.positions.copy_from_slice(x);
+            sim.state.velocities.copy_from_slice(v);
+            if let Some(r) = &mut sim.residuals {
+                let values: &[f32] = bytemuck::cast_slice(&view[2 * n as usize..]);
+                r.clear();
+                r.extend(values.iter().map(|&e| e as f64));
+            }
+        }
+        self.readback.unmap();
+        Ok(())
+    }
+
+    /// Records every substep of a frame.
+    fn record_frame(&self, sim: &Simulation) -> wgpu::CommandEncoder {
+        let s = sim.solver_settings();
+        let recording = sim.residuals.is_some();
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("drape frame"),
+            });
+        encoder.clear_buffer(&self.residual_count, 0, None);
+        let integrating = sim.integrating();
+        let (n, springs) = (self.particles, self.springs);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("drape frame"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(1, &self.group1, &[]);
+        let dispatch = |pass: &mut wgpu::ComputePass,
+                        pipeline: &wgpu::ComputePipeline,
+                        slot: u32,
+                        count: u32,
+                        size: u32| {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.group0, &[(slot as u64 * PARAMS_STRIDE) as u32]);
+            pass.dispatch_workgroups(groups(count, size), 1, 1);
+        };
+        let k = &self.kernels;
+        if integrating {
+            dispatch(&mut pass, &k.predict, PARAMS_NEXT, n, GROUP);
+        }
+        for substep in 0..sim.substeps {
+            for _ in 0..s.iterations {
+                let sweeps = |pass: &mut wgpu::ComputePass| {
+                    if recording {
+                        dispatch(
+                            pass,
+                            &k.residual_partial,
+                            PARAMS_NEXT,
+                            self.structural,
+                            REDUCE_GROUP,
+                        );
+                        dispatch(pass, &k.residual_total, PARAMS_NEXT, 1, 1);
+                    }
+                };
+                if s.kind == SolverKind::Pbd {
+                    dispatch(&mut pass, &k.pbd, PARAMS_NEXT, n, GROUP);
+                    dispatch(&mut pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
+                    sweeps(&mut pass);
+                    continue;
+                }
+                dispatch(&mut pass, &k.project, PARAMS_NEXT, springs, GROUP);
+                for _ in 0..s.inner_iterations {
+                    if s.kind == SolverKind::Jacobi {
+                        dispatch(&mut pass, &k.jacobi, PARAMS_NEXT, n, GROUP);
+                        dispatch(&mut pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
+                    } else {
+                        for (c, &(start, end)) in self.colour_ranges.iter().enumerate() {
+                            dispatch(
+                                &mut pass,
+                                &k.sweep,
+                                PARAMS_COLOUR + c as u32,
+                                end - start,
+                                GROUP,
+                            );
+                        }
+                    }
+                    sweeps(&mut pass);
+                }
+            }
+            let last = substep + 1 == sim.substeps;
+            if integrating {
+                dispatch(
+                    &mut pass,
+                    &k.finish,
+                    if last { PARAMS_LAST } else { PARAMS_NEXT },
+                    n,
+                    GROUP,
+                );
+            } else {
+                dispatch(&mut pass, &k.finish_static, PARAMS_NEXT, n, GROUP);
+            }
+        }
+        drop(pass);
+        encoder
+    }
+}
