@@ -40,6 +40,14 @@ fn max_distance(a: &Simulation, b: &Simulation) -> f32 {
         .fold(0.0, f32::max)
 }
 
+/// Largest relative difference between two residual histories.
+fn largest_gap(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / x)
+        .fold(0.0, f64::max)
+}
+
 #[test]
 fn red_black_residuals_match_on_scene_e() {
     let mut scene = reference::load(reference::ENLARGED_CLOTH, "enlarged_cloth.json");
@@ -48,25 +56,35 @@ fn red_black_residuals_match_on_scene_e() {
         return;
     };
     let (rc, rg) = (cpu.residuals.unwrap(), gpu.residuals.unwrap());
-    assert_eq!(rc.len(), 50);
-    assert_eq!(rg.len(), 50);
-    for (k, (c, g)) in rc.iter().zip(&rg).enumerate() {
-        assert!(
-            (c - g).abs() <= 1e-4 * c,
-            "iteration {}: cpu {c} gpu {g}",
-            k + 1
-        );
-    }
+    assert_eq!((rc.len(), rg.len()), (50, 50));
+    let gap = largest_gap(&rc, &rg);
+    eprintln!("scene E: largest residual gap {gap:.2e} relative");
+    assert!(gap <= 1e-4, "residuals differ by {gap:.2e} relative");
 }
 
 #[test]
-fn red_black_positions_match_on_scene_h() {
-    let scene = reference::load(reference::HANGING_CLOTH, "hanging_cloth.json");
-    let Some((cpu, gpu)) = both(&scene, 1) else {
+fn red_black_residuals_and_positions_match_on_scene_h() {
+    // Frame 5: in frame 1 the springs' error is ~10 ulps of their length, so its residuals are
+    // rounding noise (measured gaps up to 2e-2 relative); by frame 5 the cloth has stretched and
+    // the comparison means something. Later the hanging cloth's folding amplifies the GPU's
+    // different rounding (fused multiply-adds): 2e-5 m by frame 10, centimetres by frame 20, so
+    // parity is a statement about the first frames, the physics metrics about the rest.
+    let mut scene = reference::load(reference::HANGING_CLOTH, "hanging_cloth.json");
+    scene.output.residuals = true;
+    let Some((cpu, gpu)) = both(&scene, 5) else {
         return;
     };
     let d = max_distance(&cpu, &gpu);
-    assert!(d <= 1e-5, "positions differ by {d} m after a frame");
+    let (rc, rg) = (cpu.residuals.unwrap(), gpu.residuals.unwrap());
+    assert_eq!(
+        (rc.len(), rg.len()),
+        (100, 100),
+        "one residual per substep of frame 5"
+    );
+    let gap = largest_gap(&rc, &rg);
+    eprintln!("scene H frame 5: largest residual gap {gap:.2e} relative, positions {d:.2e} m");
+    assert!(gap <= 1e-4, "residuals differ by {gap:.2e} relative");
+    assert!(d <= 1e-5, "positions differ by {d} m after 5 frames");
 }
 
 #[test]

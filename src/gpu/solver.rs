@@ -73,6 +73,19 @@ impl GpuSimulation {
                 ),
             });
         }
+        let dispatch_limit = ctx.device.limits().max_compute_workgroups_per_dimension as usize;
+        if n.max(model.springs.len()).div_ceil(GROUP as usize) > dispatch_limit {
+            return Err(Error::Gpu {
+                reason: format!(
+                    "{n} particles and {} springs need more than the {dispatch_limit} workgroups {} runs per dispatch",
+                    model.springs.len(),
+                    ctx.adapter.name
+                ),
+            });
+        }
+        ctx.device.set_device_lost_callback(|reason, message| {
+            eprintln!("drape: GPU device lost ({reason:?}): {message}");
+        });
         let kernels = Kernels::new(device);
         let rw = wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_SRC
