@@ -4,7 +4,8 @@
 //! The stages, in the order data flows through them (and the order `sim::Simulation::substep`
 //! runs the per-step ones):
 //! 1. [`scene`]: read and validate the scene file (defaults fill everything left out).
-//! 2. [`garment`]: build each garment's particle grid, springs and colouring.
+//! 2. [`character`]: import animated bodies (assimp) as frames and sample collision shells;
+//!    [`garment`]: build each garment's particle grid, springs and colouring.
 //! 3. [`sim`]: lay the garments out for the solver ([`sim::Model`], [`sim::State`]) and step:
 //!    predict (Verlet) → solve (Projective Dynamics / PBD) → [`collide`] → commit; on the CPU,
 //!    or with the same stages in compute shaders on the GPU ([`gpu`]).
@@ -15,6 +16,7 @@
 
 pub mod bake;
 pub mod bench;
+pub mod character;
 pub mod collide;
 pub mod error;
 pub mod export;

@@ -1,0 +1,304 @@
+//! Characters: animated bodies that garments collide with, imported through assimp and sampled
+//! into frames at the scene's frame rate, then covered by a shell of collision particles.
+//!
+//! - [`import`]: one file (glTF/GLB, FBX, Collada, OBJ, ... whatever assimp reads) with its node
+//!   hierarchy, skinning and clips, posed at any time;
+//! - [`Character`]: frames at the scene's fps from a skinned clip, a static mesh, or a sequence of
+//!   files (one mesh per frame), with unit scale, up axis, placement, time offset, speed and
+//!   loop/hold applied;
+//! - [`shell`]: the collision particle shell.
+
+pub mod import;
+pub mod shell;
+
+pub use import::Asset;
+pub use shell::Shell;
+
+use crate::error::{Error, Result};
+use glam::{EulerRot, Mat4, Quat, Vec3};
+use std::path::{Path, PathBuf};
+
+/// The file's up axis (drape is Y-up).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UpAxis {
+    #[default]
+    Y,
+    /// Z up (Blender's convention): rotated −90° about X on import.
+    Z,
+}
+
+/// How to read and place a character.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CharacterOptions {
+    /// Clip name (or index as text) of a skinned file; None for the rest pose.
+    pub clip: Option<String>,
+    /// File units to metres.
+    pub scale: f32,
+    pub up: UpAxis,
+    /// Placement [m] and rotation (Euler degrees, X then Y then Z) after scale and up axis.
+    pub position: [f32; 3],
+    pub rotation: [f32; 3],
+    /// Clip time at frame 1 [s].
+    pub time_offset: f32,
+    /// Clip seconds per scene second.
+    pub speed: f32,
+    /// Past the clip's end: loop (true) or hold the last pose (false).
+    pub looping: bool,
+}
+
+impl Default for CharacterOptions {
+    fn default() -> Self {
+        CharacterOptions {
+            clip: None,
+            scale: 1.0,
+            up: UpAxis::Y,
+            position: [0.0; 3],
+            rotation: [0.0; 3],
+            time_offset: 0.0,
+            speed: 1.0,
+            looping: false,
+        }
+    }
+}
+
+impl CharacterOptions {
+    /// The placement of file coordinates in the scene.
+    pub fn transform(&self) -> Mat4 {
+        let up = match self.up {
+            UpAxis::Y => Mat4::IDENTITY,
+            UpAxis::Z => Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
+        };
+        let [rx, ry, rz] = self.rotation.map(f32::to_radians);
+        Mat4::from_scale_rotation_translation(
+            Vec3::splat(self.scale),
+            Quat::from_euler(EulerRot::XYZ, rx, ry, rz),
+            Vec3::from(self.position),
+        ) * up
+    }
+
+    /// Clip time [s] of frame `k` (0-based) at `fps`, for a clip of `duration` seconds.
+    pub fn clip_time(&self, k: usize, fps: f32, duration: f64) -> f64 {
+        let t = self.time_offset as f64 + k as f64 * self.speed as f64 / fps as f64;
+        if duration <= 0.0 {
+            0.0
+        } else if self.looping {
+            t.rem_euclid(duration)
+        } else {
+            t.clamp(0.0, duration)
+        }
+    }
+}
+
+/// An animated body as frames of one mesh.
+#[derive(Clone, Debug)]
+pub struct Character {
+    /// Where it came from (a file or a folder of frames).
+    pub source: PathBuf,
+    /// Triangles of frame 0 (a sequence with changing topology has its own per frame).
+    pub triangles: Vec<Vec<[u32; 3]>>,
+    /// Vertex positions [m] of every frame.
+    pub frames: Vec<Vec<Vec3>>,
+    /// Frames per second.
+    pub fps: f32,
+    /// Clip names and durations [s] of the file (empty for sequences and static meshes).
+    pub clips: Vec<(String, f64)>,
+}
+
+/// File extensions taken as frames of a sequence folder.
+const MESH_EXTENSIONS: [&str; 9] = [
+    "obj", "ply", "stl", "fbx", "dae", "gltf", "glb", "off", "3ds",
+];
+
+impl Character {
+    /// Loads `source` (one file, or a folder or `printf`-style `%0Nd` pattern of per-frame files)
+    /// as `frames` frames at `fps`.
+    pub fn load(
+        source: &Path,
+        options: &CharacterOptions,
+        fps: f32,
+        frames: usize,
+    ) -> Result<Character> {
+        let files = sequence_files(source)?;
+        if files.len() == 1 && !source.is_dir() {
+            let asset = Asset::open(&files[0])?;
+            return Character::from_asset(&asset, source, options, fps, frames);
+        }
+        // A sequence: file k is frame k; past the last file the last frame holds.
+        let transform = options.transform();
+        let mut character = Character {
+            source: source.to_path_buf(),
+            triangles: Vec::new(),
+            frames: Vec::new(),
+            fps,
+            clips: Vec::new(),
+        };
+        for file in files.iter().take(frames.max(1)) {
+            let asset = Asset::open(file)?;
+            character.frames.push(
+                asset
+                    .pose(None, 0.0)
+                    .iter()
+                    .map(|&v| transform.transform_point3(v))
+                    .collect(),
+            );
+            character.triangles.push(asset.triangles());
+        }
+        Ok(character)
+    }
+
+    /// Samples a loaded file: its clip (or rest pose) at `fps` for `frames` frames.
+    pub fn from_asset(
+        asset: &Asset,
+        source: &Path,
+        options: &CharacterOptions,
+        fps: f32,
+        frames: usize,
+    ) -> Result<Character> {
+        let clip = match &options.clip {
+            Some(name) => Some(asset.clip_index(name).ok_or_else(|| Error::InvalidField {
+                file: source.display().to_string(),
+                field: "clip".into(),
+                reason: format!(
+                    "no clip {name:?}; the file has {}",
+                    if asset.clips.is_empty() {
+                        "none".to_string()
+                    } else {
+                        asset
+                            .clips
+                            .iter()
+                            .enumerate()
+                            .map(|(i, c)| {
+                                if c.name.is_empty() {
+                                    format!("#{i} (unnamed)")
+                                } else {
+                                    format!("{:?}", c.name)
+                                }
+                            })
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
+                ),
+            })?),
+            None => None,
+        };
+        let duration = clip.map_or(0.0, |c| asset.clips[c].duration);
+        let transform = options.transform();
+        let count = if clip.is_some() { frames.max(1) } else { 1 };
+        let frames = (0..count)
+            .map(|k| {
+                let t = options.clip_time(k, fps, duration);
+                asset
+                    .pose(clip, t)
+                    .iter()
+                    .map(|&v| transform.transform_point3(v))
+                    .collect()
+            })
+            .collect();
+        Ok(Character {
+            source: source.to_path_buf(),
+            triangles: vec![asset.triangles()],
+            frames,
+            fps,
+            clips: asset
+                .clips
+                .iter()
+                .map(|c| (c.name.clone(), c.duration))
+                .collect(),
+        })
+    }
+
+    /// True when every frame shares frame 0's triangles (a shell then rides the skin).
+    pub fn same_topology(&self) -> bool {
+        self.triangles.windows(2).all(|w| w[0] == w[1])
+            && self.frames.iter().all(|f| f.len() == self.frames[0].len())
+    }
+
+    /// Triangles of frame `k`.
+    pub fn triangles_of(&self, k: usize) -> &[[u32; 3]] {
+        &self.triangles[k.min(self.triangles.len() - 1)]
+    }
+
+    /// Vertices of frame `k` (the last frame holds past the end).
+    pub fn frame(&self, k: usize) -> &[Vec3] {
+        &self.frames[k.min(self.frames.len() - 1)]
+    }
+
+    /// Axis-aligned bounds of frame `k`.
+    pub fn bounds(&self, k: usize) -> (Vec3, Vec3) {
+        self.frame(k).iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &v| (lo.min(v), hi.max(v)),
+        )
+    }
+
+    /// Vertices at fractional frame `f` (substeps), interpolated linearly between frames.
+    pub fn vertices_at(&self, f: f32) -> Vec<Vec3> {
+        let k = f.floor().max(0.0) as usize;
+        let (a, b) = (self.frame(k), self.frame(k + 1));
+        if a.len() != b.len() {
+            return a.to_vec();
+        }
+        let w = (f - k as f32).clamp(0.0, 1.0);
+        a.iter().zip(b).map(|(p, q)| p.lerp(*q, w)).collect()
+    }
+}
+
+/// The files of a source: itself, a folder's mesh files in name order, or a `%0Nd` pattern's
+/// files from 0 or 1 up while they exist.
+fn sequence_files(source: &Path) -> Result<Vec<PathBuf>> {
+    let text = source.to_string_lossy();
+    if let Some(at) = text.find('%') {
+        let end = text[at..]
+            .find('d')
+            .map(|e| at + e)
+            .ok_or_else(|| Error::InvalidField {
+                file: text.to_string(),
+                field: "pattern".into(),
+                reason: "a frame pattern needs a printf number such as %04d".into(),
+            })?;
+        let width: usize = text[at + 1..end]
+            .trim_start_matches('0')
+            .parse()
+            .unwrap_or(0);
+        let name =
+            |k: usize| PathBuf::from(format!("{}{k:0width$}{}", &text[..at], &text[end + 1..]));
+        let first = if name(0).is_file() { 0 } else { 1 };
+        let files: Vec<PathBuf> = (first..).map(name).take_while(|p| p.is_file()).collect();
+        if files.is_empty() {
+            return Err(Error::io(
+                source,
+                "cannot read",
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "no file matches the frame pattern",
+                ),
+            ));
+        }
+        return Ok(files);
+    }
+    if source.is_dir() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(source)
+            .map_err(|e| Error::io(source, "cannot read", e))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| MESH_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+            })
+            .collect();
+        files.sort();
+        if files.is_empty() {
+            return Err(Error::io(
+                source,
+                "cannot read",
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "the folder holds no mesh files",
+                ),
+            ));
+        }
+        return Ok(files);
+    }
+    Ok(vec![source.to_path_buf()])
+}

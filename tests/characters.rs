@@ -1,0 +1,383 @@
+//! Characters imported through assimp: the shared assets against their MANIFEST
+//! (`shared/assets/MANIFEST.md`, boxes made by two independent evaluators), skinning against an
+//! analytic two-bone rig written here, shells against their spacing and coverage contract, and
+//! bad files against clear errors.
+
+mod common;
+
+use drape::character::{Asset, Character, CharacterOptions, Shell};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+fn asset_path(name: &str) -> Option<PathBuf> {
+    let p = Path::new("../shared/assets").join(name);
+    if p.is_file() {
+        Some(p)
+    } else {
+        eprintln!(
+            "skipped: {} is not there (shared/ beside the checkout)",
+            p.display()
+        );
+        None
+    }
+}
+
+fn clip(asset: &Asset, path: &Path, clip: Option<&str>, frames: usize) -> Character {
+    let options = CharacterOptions {
+        clip: clip.map(str::to_string),
+        ..Default::default()
+    };
+    Character::from_asset(asset, path, &options, 60.0, frames).expect("clip samples")
+}
+
+fn assert_box(c: &Character, frame: usize, lo: [f32; 3], hi: [f32; 3], what: &str) {
+    let (a, b) = c.bounds(frame);
+    let ok = (a - Vec3::from(lo)).abs().max_element() < 1e-3
+        && (b - Vec3::from(hi)).abs().max_element() < 1e-3;
+    assert!(ok, "{what}: box {a} … {b}, MANIFEST says {lo:?} … {hi:?}");
+}
+
+/// Largest distance any vertex moves between consecutive frames.
+fn largest_step(c: &Character) -> f32 {
+    c.frames
+        .windows(2)
+        .map(|w| {
+            w[0].iter()
+                .zip(&w[1])
+                .map(|(p, q)| p.distance(*q))
+                .fold(0.0, f32::max)
+        })
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn cesium_man_matches_its_manifest() {
+    let Some(path) = asset_path("CesiumMan/CesiumMan.glb") else {
+        return;
+    };
+    let asset = Asset::open(&path).unwrap();
+    let rest = clip(&asset, &path, None, 1);
+    assert_eq!(rest.frames[0].len(), 3273);
+    assert_eq!(rest.triangles[0].len(), 4672);
+    assert_box(
+        &rest,
+        0,
+        [-0.569, 0.000, -0.131],
+        [0.569, 1.507, 0.181],
+        "rest pose",
+    );
+    // The one clip has no name: index 0. 2 s at 60 fps.
+    let walk = clip(&asset, &path, Some("0"), 121);
+    assert_eq!(walk.clips, vec![(String::new(), 2.0)]);
+    assert_box(
+        &walk,
+        0,
+        [-0.3105, -0.0106, -0.4466],
+        [0.1947, 1.4472, 0.4499],
+        "walk at t = 0",
+    );
+    let step = largest_step(&walk);
+    assert!(
+        step > 0.005 && step <= 0.044 + 1e-3,
+        "walk moves {step} m per frame at most (MANIFEST: 0.044)"
+    );
+}
+
+#[test]
+fn robot_expressive_matches_its_manifest() {
+    let Some(path) = asset_path("RobotExpressive/RobotExpressive.glb") else {
+        return;
+    };
+    let asset = Asset::open(&path).unwrap();
+    assert_eq!(asset.clips.len(), 14);
+    let rest = clip(&asset, &path, None, 1);
+    assert_eq!(
+        (rest.frames[0].len(), rest.triangles[0].len()),
+        (7214, 3237)
+    );
+    assert_box(
+        &rest,
+        0,
+        [-1.5207, -0.0203, -1.2691],
+        [1.5788, 4.4409, 1.4160],
+        "rest pose",
+    );
+    let cases = [
+        (
+            "Dance",
+            [-1.5207, -0.0203, -1.2818],
+            [1.5788, 4.4765, 1.3461],
+            0.69,
+        ),
+        (
+            "Running",
+            [-1.1978, 0.8081, -2.1597],
+            [1.4476, 4.9964, 2.2070],
+            0.67,
+        ),
+        (
+            "Walking",
+            [-1.4017, -0.0747, -1.3116],
+            [1.6539, 4.3445, 1.5677],
+            0.27,
+        ),
+        (
+            "Jump",
+            [-1.5207, -0.0203, -1.2818],
+            [1.5788, 4.2215, 1.8207],
+            0.77,
+        ),
+        (
+            "Wave",
+            [-1.3472, -0.0203, -1.2818],
+            [1.5788, 4.4765, 1.5658],
+            0.41,
+        ),
+    ];
+    for (name, lo, hi, manifest_step) in cases {
+        let frames =
+            (asset.clips[asset.clip_index(name).unwrap()].duration * 60.0).ceil() as usize + 1;
+        let c = clip(&asset, &path, Some(name), frames);
+        assert_box(&c, 0, lo, hi, name);
+        let step = largest_step(&c);
+        assert!(step > 0.0, "{name}: the clip should move");
+        assert!(
+            step <= manifest_step + 0.01,
+            "{name}: a vertex moves {step} per frame (MANIFEST: {manifest_step})"
+        );
+    }
+    // Sitting ends seated; past its 0.417 s the last pose holds.
+    let sit = clip(&asset, &path, Some("Sitting"), 60);
+    assert_box(
+        &sit,
+        59,
+        [-1.5207, -0.0203, -1.9793],
+        [1.5788, 3.9807, 0.9947],
+        "Sitting at its end",
+    );
+}
+
+/// A two-bone rig: Bone1 at the origin, Bone2 one metre up, rotating 90° about Z over one second.
+/// Vertex 0 follows Bone1, vertex 1 Bone2, vertex 2 half of each; written as glTF + .bin here.
+fn write_rig(dir: &Path) -> PathBuf {
+    let mut bin: Vec<u8> = Vec::new();
+    let f32s = |bin: &mut Vec<u8>, v: &[f32]| {
+        v.iter()
+            .for_each(|x| bin.extend_from_slice(&x.to_le_bytes()))
+    };
+    f32s(&mut bin, &[0.5, 0.0, 0.0, 0.5, 2.0, 0.0, 0.5, 1.0, 0.0]); // 0: positions, 36 B
+    for j in [[0u16, 1, 0, 0], [1, 0, 0, 0], [0, 1, 0, 0]] {
+        j.iter()
+            .for_each(|x| bin.extend_from_slice(&x.to_le_bytes())); // 36: joints, 24 B
+    }
+    f32s(
+        &mut bin,
+        &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0],
+    ); // 60: weights, 48 B
+    [0u16, 1, 2, 0]
+        .iter()
+        .for_each(|x| bin.extend_from_slice(&x.to_le_bytes())); // 108: indices + pad
+    let identity = glam::Mat4::IDENTITY.to_cols_array();
+    let down = glam::Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0)).to_cols_array();
+    f32s(&mut bin, &identity); // 116: inverse bind matrices, 128 B
+    f32s(&mut bin, &down);
+    f32s(&mut bin, &[0.0, 1.0]); // 244: key times
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    f32s(&mut bin, &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, s, s]); // 252: rotations (x, y, z, w)
+    std::fs::write(dir.join("rig.bin"), &bin).unwrap();
+    let gltf = format!(
+        r#"{{
+  "asset": {{ "version": "2.0" }},
+  "scene": 0, "scenes": [{{ "nodes": [0] }}],
+  "nodes": [
+    {{ "name": "Root", "children": [1, 3] }},
+    {{ "name": "Bone1", "children": [2] }},
+    {{ "name": "Bone2", "translation": [0, 1, 0] }},
+    {{ "name": "Skin", "mesh": 0, "skin": 0, "translation": [5, 5, 5] }}
+  ],
+  "skins": [{{ "joints": [1, 2], "inverseBindMatrices": 4 }}],
+  "meshes": [{{ "primitives": [{{ "attributes": {{ "POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2 }}, "indices": 3 }}] }}],
+  "animations": [{{ "name": "Bend",
+    "samplers": [{{ "input": 5, "output": 6, "interpolation": "LINEAR" }}],
+    "channels": [{{ "sampler": 0, "target": {{ "node": 2, "path": "rotation" }} }}] }}],
+  "buffers": [{{ "uri": "rig.bin", "byteLength": {len} }}],
+  "bufferViews": [
+    {{ "buffer": 0, "byteOffset": 0, "byteLength": 36 }},
+    {{ "buffer": 0, "byteOffset": 36, "byteLength": 24 }},
+    {{ "buffer": 0, "byteOffset": 60, "byteLength": 48 }},
+    {{ "buffer": 0, "byteOffset": 108, "byteLength": 6 }},
+    {{ "buffer": 0, "byteOffset": 116, "byteLength": 128 }},
+    {{ "buffer": 0, "byteOffset": 244, "byteLength": 8 }},
+    {{ "buffer": 0, "byteOffset": 252, "byteLength": 32 }}
+  ],
+  "accessors": [
+    {{ "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.5, 0, 0], "max": [0.5, 2, 0] }},
+    {{ "bufferView": 1, "componentType": 5123, "count": 3, "type": "VEC4" }},
+    {{ "bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4" }},
+    {{ "bufferView": 3, "componentType": 5123, "count": 3, "type": "SCALAR" }},
+    {{ "bufferView": 4, "componentType": 5126, "count": 2, "type": "MAT4" }},
+    {{ "bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1] }},
+    {{ "bufferView": 6, "componentType": 5126, "count": 2, "type": "VEC4" }}
+  ]
+}}"#,
+        len = bin.len()
+    );
+    let path = dir.join("rig.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+#[test]
+fn two_bone_skinning_is_analytic() {
+    let dir = common::temp_dir();
+    let path = write_rig(dir.path());
+    let asset = Asset::open(&path).expect("assimp reads the rig");
+    let bend = asset.clip_index("Bend").expect("clip Bend");
+    for (t, angle) in [(0.0f64, 0.0f32), (0.5, 45.0), (1.0, 90.0)] {
+        let p = asset.pose(Some(bend), t);
+        let (s, c) = angle.to_radians().sin_cos();
+        // Bone2 turns about (0, 1, 0): a point (0.5, 1 + y, 0) goes to (0.5c − y s, 1 + 0.5 s + y c).
+        let on_bone2 = |y: f32| Vec3::new(0.5 * c - y * s, 1.0 + 0.5 * s + y * c, 0.0);
+        let expected = [
+            Vec3::new(0.5, 0.0, 0.0),
+            on_bone2(1.0),
+            (Vec3::new(0.5, 1.0, 0.0) + on_bone2(0.0)) * 0.5,
+        ];
+        for (k, (got, want)) in p.iter().zip(expected).enumerate() {
+            assert!(
+                got.distance(want) < 1e-5,
+                "t = {t}: vertex {k} at {got}, expected {want}"
+            );
+        }
+    }
+}
+
+#[test]
+fn shells_keep_their_spacing_and_cover_the_body() {
+    let Some(path) = asset_path("CesiumMan/CesiumMan.glb") else {
+        return;
+    };
+    let asset = Asset::open(&path).unwrap();
+    let walk = clip(&asset, &path, Some("0"), 30);
+    let r = 0.02;
+    let shell = Shell::sample(&walk.frames[0], &walk.triangles[0], r);
+    assert!(shell.len() > 100);
+    assert_eq!(
+        shell,
+        Shell::sample(&walk.frames[0], &walk.triangles[0], r),
+        "deterministic"
+    );
+    let p = shell.positions(&walk.frames[0], &walk.triangles[0]);
+    for i in 0..p.len() {
+        for j in i + 1..p.len() {
+            assert!(
+                p[i].distance(p[j]) >= 2.0 * r * (1.0 - 1e-5),
+                "particles {i} and {j} closer than 2r"
+            );
+        }
+    }
+    // Coverage: dense surface points (a finer shell) against their nearest particle.
+    let probes = Shell::sample(&walk.frames[0], &walk.triangles[0], r / 4.0)
+        .positions(&walk.frames[0], &walk.triangles[0]);
+    let mut gaps: Vec<f32> = probes
+        .iter()
+        .map(|q| p.iter().map(|x| x.distance(*q)).fold(f32::MAX, f32::min) / r)
+        .collect();
+    gaps.sort_by(f32::total_cmp);
+    let (median, p95, max) = (
+        gaps[gaps.len() / 2],
+        gaps[gaps.len() * 95 / 100],
+        gaps[gaps.len() - 1],
+    );
+    eprintln!("coverage in r: median {median:.2}, p95 {p95:.2}, max {max:.2}");
+    assert!(
+        median <= 1.1 && p95 <= 1.75 && max <= 2.5,
+        "coverage median {median}, p95 {p95}, max {max} (in r)"
+    );
+    // Carried through the clip, particles stay on the moving skin and move continuously.
+    let later = shell.positions(&walk.frames[10], &walk.triangles[0]);
+    let next = shell.positions(&walk.frames[11], &walk.triangles[0]);
+    let step = later
+        .iter()
+        .zip(&next)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(
+        step > 0.0 && step < 0.05,
+        "shell particles move {step} m between frames"
+    );
+}
+
+#[test]
+fn bad_files_give_clear_errors() {
+    let dir = common::temp_dir();
+    let missing = Asset::open(&dir.path().join("nobody.glb")).unwrap_err();
+    assert_eq!(missing.exit_code(), 2);
+    assert!(missing.to_string().contains("nobody.glb"), "{missing}");
+
+    let corrupt = common::write(dir.path(), "broken.glb", "glTF this is not a binary glTF");
+    let err = Asset::open(&corrupt).unwrap_err();
+    assert_eq!(err.exit_code(), 2);
+    assert!(
+        err.to_string().contains("broken.glb") && err.to_string().contains("assimp"),
+        "{err}"
+    );
+
+    let lines = common::write(
+        dir.path(),
+        "lines.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2 3\n",
+    );
+    let err = Asset::open(&lines).unwrap_err();
+    assert!(err.to_string().contains("lines.obj"), "{err}");
+
+    let rig = write_rig(dir.path());
+    let asset = Asset::open(&rig).unwrap();
+    let options = CharacterOptions {
+        clip: Some("Dance".into()),
+        ..Default::default()
+    };
+    let err = Character::from_asset(&asset, &rig, &options, 60.0, 10).unwrap_err();
+    assert!(
+        err.to_string().contains("Dance") && err.to_string().contains("Bend"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_folder_of_frames_is_a_sequence() {
+    let dir = common::temp_dir();
+    for k in 1..=3 {
+        let y = k as f32 * 0.1;
+        common::write(
+            dir.path(),
+            &format!("frame_{k:04}.obj"),
+            &format!("v 0 {y} 0\nv 1 {y} 0\nv 0 {y} 1\nf 1 2 3\n"),
+        );
+    }
+    let options = CharacterOptions {
+        scale: 2.0,
+        ..Default::default()
+    };
+    let c = Character::load(dir.path(), &options, 60.0, 10).unwrap();
+    assert_eq!(c.frames.len(), 3);
+    assert!(c.same_topology());
+    assert!(
+        (c.frame(2)[0].y - 0.6).abs() < 1e-6,
+        "scaled second frame: {}",
+        c.frame(2)[0]
+    );
+    assert_eq!(c.frame(9), c.frame(2), "the last frame holds");
+    let pattern = Character::load(
+        &dir.path().join("frame_%04d.obj"),
+        &CharacterOptions::default(),
+        60.0,
+        10,
+    )
+    .unwrap();
+    assert_eq!(pattern.frames.len(), 3);
+    assert!(
+        (pattern.vertices_at(0.5)[0].y - 0.15).abs() < 1e-6,
+        "substep interpolation"
+    );
+}
