@@ -158,14 +158,15 @@ fn robot_expressive_matches_its_manifest() {
 }
 
 /// A two-bone rig: Bone1 at the origin, Bone2 one metre up, rotating 90° about Z over one second.
-/// Vertex 0 follows Bone1, vertex 1 Bone2, vertex 2 half of each; written as glTF + .bin here.
+/// Vertex 0 follows Bone1, vertex 1 Bone2, vertex 2 (off the bones' plane) half of each;
+/// written as glTF + .bin here.
 fn write_rig(dir: &Path) -> PathBuf {
     let mut bin: Vec<u8> = Vec::new();
     let f32s = |bin: &mut Vec<u8>, v: &[f32]| {
         v.iter()
             .for_each(|x| bin.extend_from_slice(&x.to_le_bytes()))
     };
-    f32s(&mut bin, &[0.5, 0.0, 0.0, 0.5, 2.0, 0.0, 0.5, 1.0, 0.0]); // 0: positions, 36 B
+    f32s(&mut bin, &[0.5, 0.0, 0.0, 0.5, 2.0, 0.0, 0.5, 1.0, 1.0]); // 0: positions, 36 B
     for j in [[0u16, 1, 0, 0], [1, 0, 0, 0], [0, 1, 0, 0]] {
         j.iter()
             .for_each(|x| bin.extend_from_slice(&x.to_le_bytes())); // 36: joints, 24 B
@@ -211,7 +212,7 @@ fn write_rig(dir: &Path) -> PathBuf {
     {{ "buffer": 0, "byteOffset": 252, "byteLength": 32 }}
   ],
   "accessors": [
-    {{ "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.5, 0, 0], "max": [0.5, 2, 0] }},
+    {{ "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.5, 0, 0], "max": [0.5, 2, 1] }},
     {{ "bufferView": 1, "componentType": 5123, "count": 3, "type": "VEC4" }},
     {{ "bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4" }},
     {{ "bufferView": 3, "componentType": 5123, "count": 3, "type": "SCALAR" }},
@@ -241,7 +242,7 @@ fn two_bone_skinning_is_analytic() {
         let expected = [
             Vec3::new(0.5, 0.0, 0.0),
             on_bone2(1.0),
-            (Vec3::new(0.5, 1.0, 0.0) + on_bone2(0.0)) * 0.5,
+            (Vec3::new(0.5, 1.0, 1.0) + on_bone2(0.0) + Vec3::Z) * 0.5,
         ];
         for (k, (got, want)) in p.iter().zip(expected).enumerate() {
             assert!(
@@ -379,5 +380,56 @@ fn a_folder_of_frames_is_a_sequence() {
     assert!(
         (pattern.vertices_at(0.5)[0].y - 0.15).abs() < 1e-6,
         "substep interpolation"
+    );
+}
+
+#[test]
+fn shell_caches_round_trip_and_go_stale_when_inputs_change() {
+    let dir = common::temp_dir();
+    let rig = write_rig(dir.path());
+    let out = dir.path().join("rig.shell");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "shell",
+            rig.to_str().unwrap(),
+            "--clip",
+            "Bend",
+            "--radius",
+            "0.05",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = common::drape(dir.path(), &args);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let first = run(&[]);
+    assert!(first.contains("particles"), "{first}");
+    let cache = drape::character::ShellCache::read(&out).unwrap();
+    assert!(cache.shell.len() > 3);
+    assert_eq!(cache.frames.len(), 61, "one second at 60 fps, both ends");
+    assert_eq!(
+        drape::character::ShellCache::from_bytes(&cache.to_bytes(), "again").unwrap(),
+        cache
+    );
+    // The particles follow the rig: at the end of the clip they match the shell on the posed mesh.
+    let asset = Asset::open(&rig).unwrap();
+    let end = asset.pose(asset.clip_index("Bend"), 1.0);
+    let expected = cache.shell.positions(&end, &asset.triangles());
+    for (a, b) in cache.frames[60].iter().zip(&expected) {
+        assert!(a.distance(*b) < 1e-5);
+    }
+    assert!(run(&[]).contains("up to date"));
+    assert!(
+        !run(&["--scale", "2"]).contains("up to date"),
+        "a changed option rebuilds the cache"
+    );
+    // A file that is not a cache is refused clearly.
+    let junk = common::write(dir.path(), "junk.shell", "not a cache");
+    let err = drape::character::ShellCache::read(&junk).unwrap_err();
+    assert!(
+        err.to_string().contains("junk.shell") && err.to_string().contains("DRAPESHL"),
+        "{err}"
     );
 }

@@ -8,9 +8,11 @@
 //!   loop/hold applied;
 //! - [`shell`]: the collision particle shell.
 
+pub mod cache;
 pub mod import;
 pub mod shell;
 
+pub use cache::ShellCache;
 pub use import::Asset;
 pub use shell::Shell;
 
@@ -246,7 +248,7 @@ impl Character {
 
 /// The files of a source: itself, a folder's mesh files in name order, or a `%0Nd` pattern's
 /// files from 0 or 1 up while they exist.
-fn sequence_files(source: &Path) -> Result<Vec<PathBuf>> {
+pub fn sequence_files(source: &Path) -> Result<Vec<PathBuf>> {
     let text = source.to_string_lossy();
     if let Some(at) = text.find('%') {
         let end = text[at..]

@@ -19,6 +19,58 @@ pub enum Command {
     Inspect(InspectArgs),
     /// Time the solvers on the reference scenes.
     Bench(BenchArgs),
+    /// Sample a character's collision shell over its frames and write it as a cache file.
+    Shell(ShellArgs),
+}
+
+/// A character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern.
+#[derive(Args, Debug)]
+pub struct CharacterArgs {
+    /// The character (e.g. walker.glb, frames/, frames/body_%04d.obj).
+    pub character: PathBuf,
+    /// Clip name (or index, e.g. 0 for an unnamed clip); without one, the rest pose.
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// File units to metres.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f32,
+    /// The file's up axis.
+    #[arg(long, value_enum, default_value_t = UpArg::Y)]
+    pub up: UpArg,
+    /// Clip time at the first frame [s].
+    #[arg(long, default_value_t = 0.0)]
+    pub time_offset: f32,
+    /// Clip seconds per second.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f32,
+    /// Loop the clip instead of holding its last pose.
+    #[arg(long)]
+    pub r#loop: bool,
+    /// Frames per second to sample at.
+    #[arg(long, default_value_t = 60.0)]
+    pub fps: f32,
+    /// Frames to sample (default: the clip's length, or 1 for a static mesh).
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Collision particle radius [m].
+    #[arg(long, default_value_t = 0.01)]
+    pub radius: f32,
+}
+
+/// A file's up axis.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpArg {
+    Y,
+    Z,
+}
+
+#[derive(Args, Debug)]
+pub struct ShellArgs {
+    #[command(flatten)]
+    pub character: CharacterArgs,
+    /// The cache file to write (reused when its inputs have not changed).
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 /// Which solver to use (overrides the scene's `solver.kind`).
@@ -83,6 +135,18 @@ pub enum BackendArg {
 pub struct InspectArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
+    /// For a character (any file but .json): clip, scale and sampling options.
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// For a character: file units to metres.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f32,
+    /// For a character: the file's up axis.
+    #[arg(long, value_enum, default_value_t = UpArg::Y)]
+    pub up: UpArg,
+    /// For a character: collision particle radius [m].
+    #[arg(long, default_value_t = 0.01)]
+    pub radius: f32,
 }
 
 #[derive(Args, Debug)]

@@ -6,6 +6,20 @@ use drape::garment::SpringFamily;
 use drape::sim::Model;
 
 pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
+    if let Some(path) = &args.scene.scene {
+        let is_scene = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+        if !is_scene {
+            let options = drape::character::CharacterOptions {
+                clip: args.clip.clone(),
+                scale: args.scale,
+                up: super::shell::up(args.up),
+                ..Default::default()
+            };
+            return super::shell::inspect(path, &options, args.radius, 60.0);
+        }
+    }
     let (scene, file) = resolve::scene(&args.scene)?;
     let garments = drape::garment::build_all(&scene);
     let model = Model::new(&garments);

@@ -6,6 +6,7 @@ mod bake;
 mod bench;
 mod inspect;
 mod resolve;
+mod shell;
 
 use clap::Parser;
 
@@ -16,5 +17,6 @@ pub fn run() -> anyhow::Result<i32> {
         args::Command::Bake(a) => bake::run(a),
         args::Command::Inspect(a) => inspect::run(a),
         args::Command::Bench(a) => bench::run(a),
+        args::Command::Shell(a) => shell::run(a),
     }
 }

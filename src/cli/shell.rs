@@ -1,0 +1,146 @@
+//! `drape shell`: a character's collision shell over its frames, written as a cache file; and the
+//! character half of `drape inspect`.
+
+use super::args::{CharacterArgs, ShellArgs, UpArg};
+use drape::character::{cache, sequence_files, Character, CharacterOptions, ShellCache};
+use std::path::Path;
+use std::time::Instant;
+
+/// Options and frame count from what was typed.
+pub fn options(a: &CharacterArgs) -> CharacterOptions {
+    CharacterOptions {
+        clip: a.clip.clone(),
+        scale: a.scale,
+        up: up(a.up),
+        time_offset: a.time_offset,
+        speed: a.speed,
+        looping: a.r#loop,
+        ..Default::default()
+    }
+}
+
+/// The up axis typed.
+pub fn up(u: UpArg) -> drape::character::UpAxis {
+    match u {
+        UpArg::Y => drape::character::UpAxis::Y,
+        UpArg::Z => drape::character::UpAxis::Z,
+    }
+}
+
+/// Loads a character with its clip's length (or `frames`) at `fps`.
+pub fn load(
+    path: &Path,
+    options: &CharacterOptions,
+    fps: f32,
+    frames: Option<usize>,
+) -> drape::Result<Character> {
+    // Sample one frame first to learn the clip's duration, then the whole clip.
+    let probe = Character::load(path, options, fps, 1)?;
+    let count = frames.unwrap_or_else(|| match (&options.clip, probe.clips.is_empty()) {
+        (Some(name), false) => {
+            let duration = probe
+                .clips
+                .iter()
+                .enumerate()
+                .find(|(i, c)| &c.0 == name || i.to_string() == *name)
+                .map_or(0.0, |(_, c)| c.1);
+            ((duration / options.speed as f64) * fps as f64).ceil() as usize + 1
+        }
+        _ => sequence_files(path).map_or(1, |f| f.len()),
+    });
+    Character::load(path, options, fps, count)
+}
+
+pub fn run(args: ShellArgs) -> anyhow::Result<i32> {
+    let a = &args.character;
+    if !(a.radius.is_finite() && a.radius > 0.0) {
+        return Err(drape::Error::InvalidArgument {
+            flag: "--radius".into(),
+            reason: format!("must be above zero (got {})", a.radius),
+        }
+        .into());
+    }
+    let options = options(a);
+    let start = Instant::now();
+    let character = load(&a.character, &options, a.fps, a.frames)?;
+    let inputs = cache::input_hash(
+        &sequence_files(&a.character)?,
+        &options,
+        a.radius,
+        a.fps,
+        character.frames.len(),
+    )?;
+    if let Ok(existing) = ShellCache::read(&args.out) {
+        if existing.inputs == inputs {
+            println!(
+                "{} is up to date ({} particles, {} frames)",
+                args.out.display(),
+                existing.shell.len(),
+                existing.frames.len()
+            );
+            return Ok(0);
+        }
+    }
+    let imported = start.elapsed();
+    let cache = ShellCache::build(&character, a.radius, inputs)?;
+    cache.write(&args.out)?;
+    let bytes = std::fs::metadata(&args.out).map_or(0, |m| m.len());
+    println!(
+        "{}: {} particles of radius {} m over {} frames; import {:.0} ms, shell {:.0} ms; {:.2} MiB written to {}",
+        a.character.display(),
+        cache.shell.len(),
+        a.radius,
+        cache.frames.len(),
+        imported.as_secs_f64() * 1e3,
+        (start.elapsed() - imported).as_secs_f64() * 1e3,
+        bytes as f64 / (1024.0 * 1024.0),
+        args.out.display()
+    );
+    Ok(0)
+}
+
+/// `drape inspect CHARACTER`: frames, vertices, bounds, clips and the shell's size.
+pub fn inspect(
+    path: &Path,
+    options: &CharacterOptions,
+    radius: f32,
+    fps: f32,
+) -> anyhow::Result<i32> {
+    let character = load(path, options, fps, None)?;
+    println!("character {}: valid", path.display());
+    for (i, (name, duration)) in character.clips.iter().enumerate() {
+        let label = if name.is_empty() {
+            format!("#{i} (unnamed)")
+        } else {
+            format!("{name:?}")
+        };
+        println!("  clip {label}: {duration:.3} s");
+    }
+    let clip = options.clip.as_deref().unwrap_or("rest pose");
+    println!(
+        "  {} frames at {fps} fps ({clip}), {} vertices, {} triangles, same topology: {}",
+        character.frames.len(),
+        character.frames[0].len(),
+        character.triangles[0].len(),
+        character.same_topology()
+    );
+    let shown = character.frames.len().min(8);
+    for k in (0..character.frames.len()).step_by(character.frames.len().div_ceil(shown).max(1)) {
+        let (lo, hi) = character.bounds(k);
+        println!(
+            "  frame {:>4}: {lo:.3} … {hi:.3}, size {:.3}",
+            k + 1,
+            hi - lo
+        );
+    }
+    let shell =
+        drape::character::Shell::sample(&character.frames[0], &character.triangles[0], radius);
+    let (binding, positions) = shell.memory_bytes(character.frames.len());
+    println!(
+        "  shell: {} particles of radius {radius} m; {:.2} MiB bound to triangles, {:.2} MiB of positions for all frames",
+        shell.len(),
+        binding as f64 / 1048576.0,
+        positions as f64 / 1048576.0
+    );
+    Ok(0)
+}
