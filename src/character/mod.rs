@@ -10,6 +10,7 @@
 
 pub mod cache;
 pub mod import;
+pub mod mannequin;
 pub mod shell;
 
 pub use cache::ShellCache;
@@ -47,6 +48,8 @@ pub struct CharacterOptions {
     pub speed: f32,
     /// Past the clip's end: loop (true) or hold the last pose (false).
     pub looping: bool,
+    /// Frame rate of a sequence of files (None: one file per scene frame).
+    pub sequence_fps: Option<f32>,
 }
 
 impl Default for CharacterOptions {
@@ -60,6 +63,7 @@ impl Default for CharacterOptions {
             time_offset: 0.0,
             speed: 1.0,
             looping: false,
+            sequence_fps: None,
         }
     }
 }
@@ -126,8 +130,24 @@ impl Character {
             let asset = Asset::open(&files[0])?;
             return Character::from_asset(&asset, source, options, fps, frames);
         }
-        // A sequence: file k is frame k; past the last file the last frame holds.
+        // A sequence: file k is frame k at `sequence_fps` (default: the scene's), resampled to
+        // `fps` by linear interpolation; past the last file the last frame holds.
         let transform = options.transform();
+        let mut stored = Vec::new();
+        let mut triangles = Vec::new();
+        for file in &files {
+            let asset = Asset::open(file)?;
+            stored.push(
+                asset
+                    .pose(None, 0.0)
+                    .iter()
+                    .map(|&v| transform.transform_point3(v))
+                    .collect::<Vec<Vec3>>(),
+            );
+            triangles.push(asset.triangles());
+        }
+        let source_fps = options.sequence_fps.unwrap_or(fps);
+        let same = triangles.windows(2).all(|w| w[0] == w[1]);
         let mut character = Character {
             source: source.to_path_buf(),
             triangles: Vec::new(),
@@ -135,16 +155,27 @@ impl Character {
             fps,
             clips: Vec::new(),
         };
-        for file in files.iter().take(frames.max(1)) {
-            let asset = Asset::open(file)?;
-            character.frames.push(
-                asset
-                    .pose(None, 0.0)
+        // Without a source rate, file k is scene frame k: never more frames than files.
+        let count = match options.sequence_fps {
+            Some(_) => frames.max(1),
+            None => frames.max(1).min(stored.len()),
+        };
+        for k in 0..count {
+            let at = (options.time_offset + k as f32 * options.speed / fps) * source_fps;
+            let i = (at.floor().max(0.0) as usize).min(stored.len() - 1);
+            let j = (i + 1).min(stored.len() - 1);
+            let w = (at - i as f32).clamp(0.0, 1.0);
+            let frame = if same && i != j {
+                stored[i]
                     .iter()
-                    .map(|&v| transform.transform_point3(v))
-                    .collect(),
-            );
-            character.triangles.push(asset.triangles());
+                    .zip(&stored[j])
+                    .map(|(a, b)| a.lerp(*b, w))
+                    .collect()
+            } else {
+                stored[i].clone()
+            };
+            character.frames.push(frame);
+            character.triangles.push(triangles[i].clone());
         }
         Ok(character)
     }

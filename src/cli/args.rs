@@ -21,6 +21,15 @@ pub enum Command {
     Bench(BenchArgs),
     /// Sample a character's collision shell over its frames and write it as a cache file.
     Shell(ShellArgs),
+    /// Write drape's procedural mannequin (clips raise_arms and sit) and its stool as OBJ frames.
+    Mannequin(MannequinArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct MannequinArgs {
+    /// Folder to write (`<clip>/frame_0001.obj …`, `stool.obj`).
+    #[arg(long, default_value = "characters/mannequin")]
+    pub out: PathBuf,
 }
 
 /// A character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern.
@@ -49,6 +58,9 @@ pub struct CharacterArgs {
     /// Frames per second to sample at.
     #[arg(long, default_value_t = 60.0)]
     pub fps: f32,
+    /// Frame rate of a sequence of files (default: one file per sampled frame).
+    #[arg(long)]
+    pub sequence_fps: Option<f32>,
     /// Frames to sample (default: the clip's length, or 1 for a static mesh).
     #[arg(long)]
     pub frames: Option<usize>,
@@ -147,6 +159,9 @@ pub struct InspectArgs {
     /// For a character: collision particle radius [m].
     #[arg(long, default_value_t = 0.01)]
     pub radius: f32,
+    /// For a sequence of files: their frame rate (default: one file per frame at 60 fps).
+    #[arg(long)]
+    pub sequence_fps: Option<f32>,
 }
 
 #[derive(Args, Debug)]

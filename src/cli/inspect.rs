@@ -15,6 +15,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
                 clip: args.clip.clone(),
                 scale: args.scale,
                 up: super::shell::up(args.up),
+                sequence_fps: args.sequence_fps,
                 ..Default::default()
             };
             return super::shell::inspect(path, &options, args.radius, 60.0);

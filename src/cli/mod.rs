@@ -18,5 +18,6 @@ pub fn run() -> anyhow::Result<i32> {
         args::Command::Inspect(a) => inspect::run(a),
         args::Command::Bench(a) => bench::run(a),
         args::Command::Shell(a) => shell::run(a),
+        args::Command::Mannequin(a) => shell::mannequin(a),
     }
 }

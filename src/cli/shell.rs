@@ -1,7 +1,7 @@
 //! `drape shell`: a character's collision shell over its frames, written as a cache file; and the
 //! character half of `drape inspect`.
 
-use super::args::{CharacterArgs, ShellArgs, UpArg};
+use super::args::{CharacterArgs, MannequinArgs, ShellArgs, UpArg};
 use drape::character::{cache, sequence_files, Character, CharacterOptions, ShellCache};
 use std::path::Path;
 use std::time::Instant;
@@ -15,6 +15,7 @@ pub fn options(a: &CharacterArgs) -> CharacterOptions {
         time_offset: a.time_offset,
         speed: a.speed,
         looping: a.r#loop,
+        sequence_fps: a.sequence_fps,
         ..Default::default()
     }
 }
@@ -46,7 +47,16 @@ pub fn load(
                 .map_or(0.0, |(_, c)| c.1);
             ((duration / options.speed as f64) * fps as f64).ceil() as usize + 1
         }
-        _ => sequence_files(path).map_or(1, |f| f.len()),
+        _ => {
+            let files = sequence_files(path).map_or(1, |f| f.len());
+            match options.sequence_fps {
+                // The sequence's length in seconds, resampled at `fps`.
+                Some(rate) => {
+                    (((files - 1) as f32 / rate / options.speed) * fps).round() as usize + 1
+                }
+                None => files,
+            }
+        }
     });
     Character::load(path, options, fps, count)
 }
@@ -142,5 +152,19 @@ pub fn inspect(
         binding as f64 / 1048576.0,
         positions as f64 / 1048576.0
     );
+    Ok(0)
+}
+
+/// `drape mannequin`: writes the mannequin's frame sequences and stool.
+pub fn mannequin(args: MannequinArgs) -> anyhow::Result<i32> {
+    let files = drape::character::mannequin::files();
+    for (name, text) in &files {
+        let path = args.out.join(name);
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| drape::Error::io(dir, "cannot create", e))?;
+        }
+        std::fs::write(&path, text).map_err(|e| drape::Error::io(&path, "cannot write", e))?;
+    }
+    println!("wrote {} files into {}", files.len(), args.out.display());
     Ok(0)
 }
