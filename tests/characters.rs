@@ -433,3 +433,47 @@ fn shell_caches_round_trip_and_go_stale_when_inputs_change() {
         "{err}"
     );
 }
+
+#[test]
+fn a_sequence_that_changes_topology_is_resampled_per_frame() {
+    let dir = common::temp_dir();
+    common::write(
+        dir.path(),
+        "a_0001.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n",
+    );
+    common::write(
+        dir.path(),
+        "a_0002.obj",
+        "v 0 0 0\nv 2 0 0\nv 0 0 2\nv 2 0 2\nf 1 2 3\nf 2 4 3\n",
+    );
+    let c = Character::load(dir.path(), &CharacterOptions::default(), 60.0, 2).unwrap();
+    assert!(!c.same_topology());
+    let shells = c.shell_frames(0.05);
+    assert!(
+        shells[1].len() > 3 * shells[0].len(),
+        "8× the area, many more particles: {} vs {}",
+        shells[1].len(),
+        shells[0].len()
+    );
+}
+
+#[test]
+fn the_command_line_reports_bad_characters_with_exit_2() {
+    let dir = common::temp_dir();
+    let out = common::drape(dir.path(), &["shell", "missing.glb", "--out", "x.shell"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(common::stderr(&out).contains("missing.glb"));
+    let rig = write_rig(dir.path());
+    let out = common::drape(
+        dir.path(),
+        &["inspect", rig.to_str().unwrap(), "--clip", "Nope"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        common::stderr(&out).contains("Nope") && common::stderr(&out).contains("Bend"),
+        "{}",
+        common::stderr(&out)
+    );
+    assert!(!dir.path().join("x.shell").exists());
+}

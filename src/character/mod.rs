@@ -247,6 +247,26 @@ impl Character {
             && self.frames.iter().all(|f| f.len() == self.frames[0].len())
     }
 
+    /// Shell particle positions on every frame: one shell sampled on frame 0 and carried on its
+    /// triangles when the topology never changes (continuous trajectories), else re-sampled on
+    /// each frame (the particle count may then change from frame to frame).
+    pub fn shell_frames(&self, radius: f32) -> Vec<Vec<Vec3>> {
+        if self.same_topology() {
+            let shell = Shell::sample(&self.frames[0], &self.triangles[0], radius);
+            return self
+                .frames
+                .iter()
+                .map(|f| shell.positions(f, &self.triangles[0]))
+                .collect();
+        }
+        (0..self.frames.len())
+            .map(|k| {
+                let t = self.triangles_of(k);
+                Shell::sample(self.frame(k), t, radius).positions(self.frame(k), t)
+            })
+            .collect()
+    }
+
     /// Triangles of frame `k`.
     pub fn triangles_of(&self, k: usize) -> &[[u32; 3]] {
         &self.triangles[k.min(self.triangles.len() - 1)]

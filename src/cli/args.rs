@@ -46,6 +46,12 @@ pub struct CharacterArgs {
     /// The file's up axis.
     #[arg(long, value_enum, default_value_t = UpArg::Y)]
     pub up: UpArg,
+    /// Placement after scale and up axis [m], e.g. `--position 0,0,0.5`.
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0])]
+    pub position: Vec<f32>,
+    /// Rotation after scale and up axis, Euler degrees applied X, Y, Z.
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0])]
+    pub rotation: Vec<f32>,
     /// Clip time at the first frame [s].
     #[arg(long, default_value_t = 0.0)]
     pub time_offset: f32,

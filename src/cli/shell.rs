@@ -16,7 +16,8 @@ pub fn options(a: &CharacterArgs) -> CharacterOptions {
         speed: a.speed,
         looping: a.r#loop,
         sequence_fps: a.sequence_fps,
-        ..Default::default()
+        position: [a.position[0], a.position[1], a.position[2]],
+        rotation: [a.rotation[0], a.rotation[1], a.rotation[2]],
     }
 }
 
