@@ -4,13 +4,15 @@
 //! A run that turns unstable stops at that frame: the frames baked so far and a report that says
 //! what happened are still moved into place, so the user can see where it went wrong.
 
+use crate::character::{cache::input_hash, sequence_files, Character, ShellCache};
 use crate::collide;
+use crate::collide::ShellCollider;
 use crate::error::{Error, Result};
 use crate::export::{FrameWriter, Staging};
 use crate::gpu::{GpuContext, GpuSimulation};
 use crate::report::{
-    Adapter, Backend, ColliderPenetration, Failure, FrameMetrics, GarmentReport, Outputs, Report,
-    Timing, SCHEMA,
+    Adapter, Backend, CharacterReport, ColliderPenetration, Failure, FrameMetrics, GarmentReport,
+    Outputs, Report, Timing, SCHEMA,
 };
 use crate::scene::{BackendKind, Scene};
 use crate::sim::{metrics, Simulation};
@@ -29,6 +31,8 @@ pub struct BakeOptions {
     pub threads: Option<usize>,
     /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
     pub progress: bool,
+    /// Folder of shell caches (`None`: [`shell_cache_dir`]).
+    pub shell_cache: Option<PathBuf>,
 }
 
 /// What a finished bake returns.
@@ -99,6 +103,74 @@ pub fn gpu_backend(
     }
 }
 
+/// Where shell caches live: `$XDG_CACHE_HOME/drape`, else `~/.cache/drape`, else the temp folder.
+pub fn shell_cache_dir() -> PathBuf {
+    std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+        .unwrap_or_else(std::env::temp_dir)
+        .join("drape")
+}
+
+/// Loads the scene's characters and their collision shells over the bake's frames, reusing a
+/// shell cache whose inputs have not changed.
+pub fn load_characters(
+    scene: &Scene,
+    cache_dir: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<(ShellCollider, CharacterReport)>> {
+    let mut out = Vec::new();
+    for (i, spec) in scene.characters.iter().enumerate() {
+        let path = scene.character_path(i);
+        let options = spec.options();
+        let frames = scene.frames as usize + 1;
+        let character = Character::load(&path, &options, scene.fps, frames)?;
+        let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
+        let (positions, cache) = if character.same_topology() {
+            let files = sequence_files(&path)?;
+            let hash = input_hash(
+                &files,
+                &options,
+                spec.radius,
+                scene.fps,
+                character.frames.len(),
+            )?;
+            let file = cache_dir.join(format!("{hash:016x}.shell"));
+            match ShellCache::read(&file) {
+                Ok(c) if c.inputs == hash => (c.frames, "reused"),
+                _ => {
+                    let c = ShellCache::build(&character, spec.radius, hash)?;
+                    let written = std::fs::create_dir_all(cache_dir)
+                        .map_err(|e| Error::io(cache_dir, "cannot create", e))
+                        .and_then(|_| c.write(&file));
+                    if let Err(e) = written {
+                        warnings.push(format!("character {name}: shell cache not written: {e}"));
+                    }
+                    (c.frames, "built")
+                }
+            }
+        } else {
+            (
+                character.shell_frames(spec.radius),
+                "none (topology changes)",
+            )
+        };
+        let report = CharacterReport {
+            name: name.clone(),
+            file: path.display().to_string(),
+            frames: positions.len(),
+            shell_particles: positions.first().map_or(0, Vec::len),
+            shell_radius: spec.radius,
+            shell_cache: cache,
+        };
+        out.push((
+            ShellCollider::new(name, spec.radius, spec.friction, positions),
+            report,
+        ));
+    }
+    Ok(out)
+}
+
 fn run(
     scene: &Scene,
     options: &BakeOptions,
@@ -107,6 +179,12 @@ fn run(
 ) -> Result<(Report, Vec<Vec3>)> {
     let mut sim = Simulation::new(scene);
     let mut warnings = Vec::new();
+    let mut characters = Vec::new();
+    let cache_dir = options.shell_cache.clone().unwrap_or_else(shell_cache_dir);
+    for (shell, report) in load_characters(scene, &cache_dir, &mut warnings)? {
+        sim.shells.push(shell);
+        characters.push(report);
+    }
     let mut gpu = gpu_backend(scene, &sim, &mut warnings)?;
     let obj_dir = dir.join("obj");
     if scene.output.obj {
@@ -121,6 +199,7 @@ fn run(
     });
     let mut report = empty_report(scene, options, &sim, threads);
     report.warnings = warnings;
+    report.characters = characters;
     if let Some(g) = &gpu {
         let info = g.adapter_info();
         report.backend.kind = "gpu";
@@ -137,7 +216,8 @@ fn run(
     let progress = progress_bar(scene.frames as u64, options.progress);
     let mut frame_ms = Vec::with_capacity(scene.frames as usize);
     let mut residuals = Vec::new();
-    let mut worst_penetration = vec![collide::Penetration::default(); sim.colliders.len()];
+    let mut worst_penetration =
+        vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
 
     for frame in 1..=scene.frames {
         let start = Instant::now();
@@ -148,7 +228,12 @@ fn run(
         frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
 
         let error = sim.constraint_error();
-        let penetrations = collide::penetrations(&sim.colliders, &sim.state.positions);
+        let mut penetrations = collide::penetrations(&sim.colliders, &sim.state.positions);
+        penetrations.extend(
+            sim.shells
+                .iter()
+                .map(|s| s.penetration(&sim.state.positions)),
+        );
         for (w, p) in worst_penetration.iter_mut().zip(&penetrations) {
             w.inside = w.inside.max(p.inside);
             w.deepest = w.deepest.max(p.deepest);
@@ -240,6 +325,7 @@ fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads:
         stable: true,
         failure: None,
         warnings: Vec::new(),
+        characters: Vec::new(),
         residuals: None,
         outputs: Outputs {
             obj: scene.output.obj.then(|| "obj".to_string()),

@@ -21,6 +21,7 @@ fn obj_frames_read_back_with_the_simulated_positions() {
             scene_file: "test".into(),
             threads: Some(2),
             progress: false,
+            shell_cache: None,
         },
     )
     .expect("bake");

@@ -23,6 +23,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         scene_file,
         threads: args.threads,
         progress: true,
+        shell_cache: None,
     };
     let result = bake(&scene, &options)?;
     let r = &result.report;

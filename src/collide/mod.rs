@@ -5,6 +5,10 @@
 //! motion smaller than μ × the push is removed (static friction), larger motion is shortened by
 //! μ × the push (kinetic friction), as position-based friction does (Macklin et al. 2014, §6.1).
 
+pub mod shell;
+
+pub use shell::ShellCollider;
+
 use crate::scene::{ColliderKind, ColliderSpec};
 use glam::{Vec3, Vec4};
 

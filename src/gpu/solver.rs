@@ -59,6 +59,13 @@ impl GpuSimulation {
                 reason: "sequential Gauss-Seidel (gs) has no parallel GPU form: use rbgs, jacobi or pbd, or the cpu backend".into(),
             });
         }
+        if !sim.shells.is_empty() {
+            return Err(Error::Gpu {
+                reason:
+                    "characters (collision shells) are simulated on the CPU backend only so far"
+                        .into(),
+            });
+        }
         let device = &ctx.device;
         let model = sim.model();
         let n = model.particle_count();

@@ -38,6 +38,8 @@ pub struct Report {
     pub failure: Option<Failure>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.
     pub warnings: Vec<String>,
+    /// The characters the garments collided with.
+    pub characters: Vec<CharacterReport>,
     /// Total squared error after every sweep, one list per frame (when the scene asks for it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residuals: Option<Vec<Vec<f64>>>,
@@ -63,6 +65,18 @@ pub struct Adapter {
     pub device_type: String,
     pub driver: String,
     pub backend: String,
+}
+
+/// A character and its collision shell.
+#[derive(Clone, Debug, Serialize)]
+pub struct CharacterReport {
+    pub name: String,
+    pub file: String,
+    pub frames: usize,
+    pub shell_particles: usize,
+    pub shell_radius: f32,
+    /// `"reused"` (an up-to-date cache), `"built"`, or why none was used.
+    pub shell_cache: &'static str,
 }
 
 /// One garment's counts.
@@ -125,7 +139,7 @@ pub struct FrameMetrics {
 /// Penetration into one collider.
 #[derive(Clone, Debug, Serialize)]
 pub struct ColliderPenetration {
-    /// Index in the scene's `colliders`.
+    /// Index in the scene's `colliders`, then the `characters` after them.
     pub collider: usize,
     #[serde(flatten)]
     pub penetration: Penetration,

@@ -45,6 +45,12 @@ pub struct Scene {
     pub garments: Vec<GarmentSpec>,
     /// Static analytic colliders. Default none.
     pub colliders: Vec<ColliderSpec>,
+    /// Animated characters the garments collide with, through their particle shells. Default none.
+    pub characters: Vec<CharacterSpec>,
+    /// Folder that relative paths in the scene are resolved against (the scene file's folder;
+    /// the working folder for the embedded scene). Not a scene field.
+    #[serde(skip)]
+    pub base_dir: std::path::PathBuf,
     /// What to write.
     pub output: OutputSpec,
     /// Where to simulate. Default `"auto"`: a hardware GPU when there is one, else the CPU.
@@ -77,6 +83,8 @@ impl Default for Scene {
             solver: SolverSettings::default(),
             garments: Vec::new(),
             colliders: Vec::new(),
+            characters: Vec::new(),
+            base_dir: std::path::PathBuf::from("."),
             output: OutputSpec::default(),
             backend: BackendKind::Auto,
         }
@@ -271,6 +279,77 @@ fn default_friction() -> f32 {
     0.5
 }
 
+/// An animated character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern,
+/// placed in the scene and covered by a shell of collision particles.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CharacterSpec {
+    /// Name in reports. Default `"character<index>"`.
+    pub name: Option<String>,
+    /// The character, relative to the scene file's folder. Required.
+    pub file: String,
+    /// Clip name (or index as text) of a skinned file. Default none: the rest pose.
+    pub clip: Option<String>,
+    /// File units to metres. Default 1.
+    pub scale: f32,
+    /// The file's up axis: `"y"` (default) or `"z"`.
+    pub up: crate::character::UpAxis,
+    /// Placement [m] after scale and up axis. Default the origin.
+    pub position: [f32; 3],
+    /// Rotation, Euler degrees X then Y then Z. Default none.
+    pub rotation: [f32; 3],
+    /// Clip time at the start of the bake [s]. Default 0.
+    pub time_offset: f32,
+    /// Clip seconds per scene second. Default 1.
+    pub speed: f32,
+    /// Loop the clip (true) or hold its last pose (false, default).
+    #[serde(rename = "loop")]
+    pub looping: bool,
+    /// Frame rate of a sequence of files. Default: one file per scene frame.
+    pub sequence_fps: Option<f32>,
+    /// Shell particle radius [m]. Default 0.01.
+    pub radius: f32,
+    /// Coulomb friction against the garments. Default 0.5.
+    pub friction: f32,
+}
+
+impl Default for CharacterSpec {
+    fn default() -> Self {
+        CharacterSpec {
+            name: None,
+            file: String::new(),
+            clip: None,
+            scale: 1.0,
+            up: crate::character::UpAxis::Y,
+            position: [0.0; 3],
+            rotation: [0.0; 3],
+            time_offset: 0.0,
+            speed: 1.0,
+            looping: false,
+            sequence_fps: None,
+            radius: 0.01,
+            friction: 0.5,
+        }
+    }
+}
+
+impl CharacterSpec {
+    /// The import options this entry describes.
+    pub fn options(&self) -> crate::character::CharacterOptions {
+        crate::character::CharacterOptions {
+            clip: self.clip.clone(),
+            scale: self.scale,
+            up: self.up,
+            position: self.position,
+            rotation: self.rotation,
+            time_offset: self.time_offset,
+            speed: self.speed,
+            looping: self.looping,
+            sequence_fps: self.sequence_fps,
+        }
+    }
+}
+
 /// What a bake writes besides `report.json`.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -294,7 +373,17 @@ impl Scene {
     /// Reads, parses and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
-        Scene::parse(&text, &path.display().to_string())
+        let mut scene = Scene::parse(&text, &path.display().to_string())?;
+        scene.base_dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        };
+        Ok(scene)
+    }
+
+    /// Where character `index`'s file is, resolved against the scene's folder.
+    pub fn character_path(&self, index: usize) -> std::path::PathBuf {
+        self.base_dir.join(&self.characters[index].file)
     }
 
     /// The embedded default scene.

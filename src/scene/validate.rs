@@ -84,6 +84,27 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
             format!("{particles} particles in all is more than drape's limit of {MAX_PARTICLES}"),
         ));
     }
+    for (i, c) in scene.characters.iter().enumerate() {
+        let at = |f: &str| format!("characters[{i}].{f}");
+        if c.file.is_empty() {
+            return Err(fail(
+                at("file"),
+                "a character needs a file, folder or %04d pattern".into(),
+            ));
+        }
+        positive(c.scale).map_err(|r| fail(at("scale"), r))?;
+        positive(c.speed).map_err(|r| fail(at("speed"), r))?;
+        positive(c.radius).map_err(|r| fail(at("radius"), r))?;
+        non_negative(c.friction).map_err(|r| fail(at("friction"), r))?;
+        if let Some(f) = c.sequence_fps {
+            positive(f).map_err(|r| fail(at("sequence_fps"), r))?;
+        }
+        finite3(c.position).map_err(|r| fail(at("position"), r))?;
+        finite3(c.rotation).map_err(|r| fail(at("rotation"), r))?;
+        if !c.time_offset.is_finite() {
+            return Err(fail(at("time_offset"), "must be finite".into()));
+        }
+    }
     for (i, c) in scene.colliders.iter().enumerate() {
         validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
     }

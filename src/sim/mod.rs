@@ -11,7 +11,7 @@ pub mod solver;
 pub mod state;
 pub mod team;
 
-use crate::collide::Collider;
+use crate::collide::{Collider, ShellCollider};
 use crate::garment::Garment;
 use crate::scene::{IntegratorKind, Scene, SolverSettings};
 use glam::{Vec3, Vec4};
@@ -28,6 +28,10 @@ pub struct Simulation {
     model: Model,
     pub state: State,
     pub colliders: Vec<Collider>,
+    /// Characters' collision shells.
+    pub shells: Vec<ShellCollider>,
+    /// Substeps simulated so far (the characters' clock).
+    elapsed_substeps: u64,
     solver: Solver,
     /// None without time integration (scene E: only the solver moves particles).
     verlet: Option<Verlet>,
@@ -79,6 +83,8 @@ impl Simulation {
             scratch: vec![Vec4::ZERO; model.particle_count()],
             delta: vec![Vec4::ZERO; model.particle_count()],
             colliders: scene.colliders.iter().map(Collider::from_spec).collect(),
+            shells: Vec::new(),
+            elapsed_substeps: 0,
             verlet: integrating.then(|| Verlet::new(gravity, scene.damping, step)),
             substeps: scene.substeps_per_frame(),
             step,
@@ -95,11 +101,32 @@ impl Simulation {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
-        self.run_substeps(self.substeps);
+        if self.shells.is_empty() {
+            self.run_substeps(self.substeps);
+        } else {
+            // Characters move every substep: their shells advance between team regions.
+            for _ in 0..self.substeps {
+                self.substep();
+            }
+        }
     }
 
     /// Advances one substep.
     pub fn substep(&mut self) {
+        if !self.shells.is_empty() {
+            let per_frame = self.substeps as f32;
+            let from = self.elapsed_substeps as f32 / per_frame;
+            let to = (self.elapsed_substeps + 1) as f32 / per_frame;
+            let reach = self
+                .model
+                .contact_radius
+                .iter()
+                .copied()
+                .fold(0.0, f32::max);
+            for s in &mut self.shells {
+                s.advance(from, to, reach);
+            }
+        }
         self.run_substeps(1);
     }
 
@@ -131,10 +158,12 @@ impl Simulation {
             }
             m.sync();
         };
+        self.elapsed_substeps += count as u64;
         let stages = Stages {
             model,
             verlet: self.verlet.as_ref(),
             colliders: &self.colliders,
+            shells: &self.shells,
             b: buffers,
             velocities,
         };
@@ -203,6 +232,7 @@ struct Stages<'a> {
     model: &'a Model,
     verlet: Option<&'a Verlet>,
     colliders: &'a [Collider],
+    shells: &'a [ShellCollider],
     b: solver::Buffers,
     velocities: Shared<Vec4>,
 }
@@ -252,6 +282,9 @@ impl Stages<'_> {
                 }
                 for c in self.colliders {
                     d = c.resolve(x, d, model.contact_radius[i]);
+                }
+                for s in self.shells {
+                    d = s.resolve(x, d, model.contact_radius[i]);
                 }
                 b.x.set(i, x + d);
                 if let Some(v) = self.verlet {
