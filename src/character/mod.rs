@@ -319,14 +319,7 @@ pub fn sequence_files(source: &Path) -> Result<Vec<PathBuf>> {
         let first = if name(0).is_file() { 0 } else { 1 };
         let files: Vec<PathBuf> = (first..).map(name).take_while(|p| p.is_file()).collect();
         if files.is_empty() {
-            return Err(Error::io(
-                source,
-                "cannot read",
-                std::io::Error::new(
-                    std::io::ErrorKind::NotFound,
-                    "no file matches the frame pattern",
-                ),
-            ));
+            return Err(not_found(source, "no file matches the frame pattern"));
         }
         return Ok(files);
     }
@@ -342,16 +335,18 @@ pub fn sequence_files(source: &Path) -> Result<Vec<PathBuf>> {
             .collect();
         files.sort();
         if files.is_empty() {
-            return Err(Error::io(
-                source,
-                "cannot read",
-                std::io::Error::new(
-                    std::io::ErrorKind::NotFound,
-                    "the folder holds no mesh files",
-                ),
-            ));
+            return Err(not_found(source, "the folder holds no mesh files"));
         }
         return Ok(files);
     }
     Ok(vec![source.to_path_buf()])
+}
+
+/// A "cannot read" error for a source that yields no frame files.
+fn not_found(source: &Path, reason: &str) -> Error {
+    Error::io(
+        source,
+        "cannot read",
+        std::io::Error::new(std::io::ErrorKind::NotFound, reason.to_string()),
+    )
 }
