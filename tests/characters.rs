@@ -272,8 +272,8 @@ fn shells_keep_their_spacing_and_cover_the_body() {
     for i in 0..p.len() {
         for j in i + 1..p.len() {
             assert!(
-                p[i].distance(p[j]) >= 2.0 * r * (1.0 - 1e-5),
-                "particles {i} and {j} closer than 2r"
+                p[i].distance(p[j]) >= drape::character::shell::SPACING * r * (1.0 - 1e-5),
+                "particles {i} and {j} closer than the shell's spacing"
             );
         }
     }
@@ -292,7 +292,7 @@ fn shells_keep_their_spacing_and_cover_the_body() {
     );
     eprintln!("coverage in r: median {median:.2}, p95 {p95:.2}, max {max:.2}");
     assert!(
-        median <= 1.1 && p95 <= 1.75 && max <= 2.5,
+        median <= 0.6 && p95 <= 0.9 && max <= 1.25,
         "coverage median {median}, p95 {p95}, max {max} (in r)"
     );
     // Carried through the clip, particles stay on the moving skin and move continuously.

@@ -68,3 +68,36 @@ fn validator_rejects_a_colouring_that_joins_a_colour() {
     m.colour_ranges = vec![0..half, half..n];
     assert!(m.check_colouring().is_err());
 }
+
+#[test]
+fn a_sheet_with_a_hole_loses_only_the_hole() {
+    let scene = common::scene(
+        r#"{ "garments": [{ "resolution": [21, 21], "size": [1, 1], "hole_radius": 0.2,
+             "stiffness": { "stretch": 100, "shear": 10 } }] }"#,
+    );
+    let g = Garment::build("poncho".into(), &scene.garments[0]);
+    let centre = glam::Vec3::new(0.0, 1.0, 0.0);
+    // Every cell centred within 0.2 m of the middle is gone, every other one is there.
+    let expected = (0..21 * 21)
+        .filter(|k| {
+            let (x, z) = ((k % 21) as f32 / 20.0 - 0.5, (k / 21) as f32 / 20.0 - 0.5);
+            x.hypot(z) > 0.2
+        })
+        .count();
+    assert_eq!(g.particle_count(), expected);
+    assert!(g.positions.iter().all(|p| p.distance(centre) > 0.2 - 1e-6));
+    let m = Model::new(std::slice::from_ref(&g));
+    m.check_colouring()
+        .expect("colouring still separates every spring");
+    let n = g.particle_count() as u32;
+    assert!(g.springs.iter().all(|s| s.a < n && s.b < n));
+    assert!(g.triangles.iter().all(|t| t.iter().all(|&i| i < n)));
+    // No spring or triangle spans the hole: none is longer than a diagonal of the grid.
+    assert!(g
+        .springs
+        .iter()
+        .all(|s| g.positions[s.a as usize].distance(g.positions[s.b as usize]) < 0.08));
+    let err = drape::scene::Scene::parse(r#"{ "garments": [{ "kind": "rope", "resolution": [5], "size": [1], "hole_radius": 0.1 }] }"#, "x.json")
+        .unwrap_err();
+    assert!(err.to_string().contains("hole_radius"), "{err}");
+}

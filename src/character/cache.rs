@@ -33,8 +33,8 @@ fn fnv(hash: u64, bytes: &[u8]) -> u64 {
         .fold(hash, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3))
 }
 
-/// Hash of everything a shell depends on: the source files' bytes, the options, radius, fps and
-/// frame count.
+/// Hash of everything a shell depends on: the source files' bytes, the options, radius, fps,
+/// frame count, and the sampler's parameters.
 pub fn input_hash(
     files: &[std::path::PathBuf],
     options: &CharacterOptions,
@@ -47,7 +47,9 @@ pub fn input_hash(
         let bytes = std::fs::read(f).map_err(|e| Error::io(f, "cannot read", e))?;
         h = fnv(h, &bytes);
     }
-    let settings = format!("{options:?}|{radius}|{fps}|{frames}|v{VERSION}");
+    // The sampler's own parameters too: a new sampler must not reuse an old cache.
+    let sampler = super::shell::SAMPLER;
+    let settings = format!("{options:?}|{radius}|{fps}|{frames}|v{VERSION}|{sampler}");
     Ok(fnv(h, settings.as_bytes()))
 }
 

@@ -32,6 +32,8 @@ pub struct Garment {
     pub name: String,
     /// Particles per lattice axis (unused axes are 1).
     pub dims: [u32; 3],
+    /// Lattice cell of each particle (grid order; cells in a hole have no particle).
+    pub cells: Vec<[u32; 3]>,
     /// Start positions [m], grid order.
     pub positions: Vec<Vec3>,
     /// Mass of each particle [kg].
@@ -122,26 +124,12 @@ impl Garment {
             .collect();
         pins.sort_unstable();
         pins.dedup();
-        let tethers = if spec.tethers {
-            let rest: Vec<Vec3> = (0..count as u32)
-                .map(|k| {
-                    let c = cell_of(dims, k);
-                    Vec3::new(
-                        c[0] as f32 * spacing[0],
-                        c[1] as f32 * spacing.get(1).copied().unwrap_or(0.0),
-                        0.0,
-                    )
-                })
-                .collect();
-            build_tethers(&rest, &pins)
-        } else {
-            Vec::new()
-        };
-        Garment {
+        let mut garment = Garment {
             name,
             dims,
+            cells: (0..count as u32).map(|k| cell_of(dims, k)).collect(),
             positions,
-            particle_mass: spec.mass / count as f32,
+            particle_mass: 0.0,
             pins,
             springs,
             stencil,
@@ -149,7 +137,63 @@ impl Garment {
             triangles: sheet_triangles(dims),
             uvs,
             contact_radius: spec.thickness * 0.5,
-            tethers,
+            tethers: Vec::new(),
+        };
+        if spec.hole_radius > 0.0 {
+            let size = [spec.size[0], spec.size.get(1).copied().unwrap_or(0.0)];
+            let keep: Vec<bool> = garment
+                .uvs
+                .iter()
+                .map(|[u, v]| ((u - 0.5) * size[0]).hypot((v - 0.5) * size[1]) > spec.hole_radius)
+                .collect();
+            garment.keep(&keep);
+        }
+        garment.particle_mass = spec.mass / garment.particle_count() as f32;
+        if spec.tethers {
+            let rest: Vec<Vec3> = garment
+                .cells
+                .iter()
+                .map(|c| {
+                    Vec3::new(
+                        c[0] as f32 * spacing[0],
+                        c[1] as f32 * spacing.get(1).copied().unwrap_or(0.0),
+                        0.0,
+                    )
+                })
+                .collect();
+            garment.tethers = build_tethers(&rest, &garment.pins);
+        }
+        garment
+    }
+
+    /// Removes the particles whose `keep` is false (a hole), with their springs, triangles and
+    /// pins; the rest keep grid order.
+    fn keep(&mut self, keep: &[bool]) {
+        let mut index = vec![u32::MAX; keep.len()];
+        let mut next = 0u32;
+        for (k, &kept) in keep.iter().enumerate() {
+            if kept {
+                index[k] = next;
+                next += 1;
+            }
+        }
+        retain_kept(&mut self.positions, keep);
+        retain_kept(&mut self.uvs, keep);
+        retain_kept(&mut self.cells, keep);
+        self.springs
+            .retain(|s| keep[s.a as usize] && keep[s.b as usize]);
+        for s in &mut self.springs {
+            s.a = index[s.a as usize];
+            s.b = index[s.b as usize];
+        }
+        self.triangles
+            .retain(|t| t.iter().all(|&i| keep[i as usize]));
+        for t in &mut self.triangles {
+            *t = t.map(|i| index[i as usize]);
+        }
+        self.pins.retain(|&p| keep[p as usize]);
+        for p in &mut self.pins {
+            *p = index[*p as usize];
         }
     }
 
@@ -165,7 +209,7 @@ impl Garment {
 
     /// The colour of particle `k` (grid order).
     pub fn colour_of(&self, k: u32) -> u32 {
-        self.colouring.colour(cell_of(self.dims, k))
+        self.colouring.colour(self.cells[k as usize])
     }
 
     /// Number of springs of one family.
@@ -237,6 +281,15 @@ fn build_springs(
         }
     }
     springs
+}
+
+/// Keeps the items whose `keep` entry is true, in order.
+fn retain_kept<T>(items: &mut Vec<T>, keep: &[bool]) {
+    let mut k = 0;
+    items.retain(|_| {
+        k += 1;
+        keep[k - 1]
+    });
 }
 
 /// Tethers from every free particle to its nearest pins (at most [`TETHERS_PER_PARTICLE`]).

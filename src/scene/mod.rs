@@ -192,6 +192,8 @@ pub struct GarmentSpec {
     pub initial_stretch: f32,
     /// Cloth thickness [m]: particles keep thickness/2 from collider surfaces. Default 0.005.
     pub thickness: f32,
+    /// Sheets: radius [m] of a round hole cut at the centre (a poncho's head hole). Default 0.
+    pub hole_radius: f32,
     /// Long-range attachments (Kim, Chentanez and Müller 2012): every free particle stays within
     /// its rest distance of its two nearest pins, so a pinned cloth cannot stretch away from its
     /// pins however few iterations the solver runs. Default true; no effect without pins.
@@ -212,6 +214,7 @@ impl Default for GarmentSpec {
             stiffness: Stiffness::default(),
             initial_stretch: 1.0,
             thickness: 0.005,
+            hole_radius: 0.0,
             tethers: true,
         }
     }

@@ -147,6 +147,25 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
     positive(g.stiffness.stretch).map_err(|r| ("stiffness.stretch", r))?;
     non_negative(g.stiffness.shear).map_err(|r| ("stiffness.shear", r))?;
     non_negative(g.stiffness.bend).map_err(|r| ("stiffness.bend", r))?;
+    non_negative(g.hole_radius).map_err(|r| ("hole_radius", r))?;
+    if g.hole_radius > 0.0 {
+        if g.kind != GarmentKind::Sheet {
+            return Err((
+                "hole_radius",
+                format!("only sheets have holes, not a {kind}"),
+            ));
+        }
+        let half = 0.5 * g.size[0].min(g.size[1]);
+        if g.hole_radius >= half {
+            return Err((
+                "hole_radius",
+                format!(
+                    "{} m leaves no cloth in a {:?} m sheet",
+                    g.hole_radius, g.size
+                ),
+            ));
+        }
+    }
     for pin in &g.pins {
         if pin.len() != axes {
             return Err(("pins", format!("pin {pin:?} needs {axes} grid coordinates")));
