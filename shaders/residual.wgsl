@@ -8,6 +8,19 @@
 
 var<workgroup> sums: array<f32, 256>;
 
+// Sum of `value` over the workgroup's 256 threads (a tree in shared memory); valid on thread 0.
+fn workgroup_sum(local: u32, value: f32) -> f32 {
+    sums[local] = value;
+    workgroupBarrier();
+    for (var stride = 128u; stride > 0u; stride = stride / 2u) {
+        if (local < stride) {
+            sums[local] = sums[local] + sums[local + stride];
+        }
+        workgroupBarrier();
+    }
+    return sums[0];
+}
+
 @compute @workgroup_size(256)
 fn residual_partial(@builtin(global_invocation_id) id: vec3<u32>,
                     @builtin(local_invocation_id) local: vec3<u32>,
@@ -20,16 +33,9 @@ fn residual_partial(@builtin(global_invocation_id) id: vec3<u32>,
         let err = length(q) - s.rest;
         e = err * err;
     }
-    sums[local.x] = e;
-    workgroupBarrier();
-    for (var stride = 128u; stride > 0u; stride = stride / 2u) {
-        if (local.x < stride) {
-            sums[local.x] = sums[local.x] + sums[local.x + stride];
-        }
-        workgroupBarrier();
-    }
+    let total = workgroup_sum(local.x, e);
     if (local.x == 0u) {
-        partial[group.x] = sums[0];
+        partial[group.x] = total;
     }
 }
 
@@ -40,16 +46,9 @@ fn residual_total(@builtin(local_invocation_id) local: vec3<u32>) {
     for (var g = local.x; g < groups; g = g + 256u) {
         e = e + partial[g];
     }
-    sums[local.x] = e;
-    workgroupBarrier();
-    for (var stride = 128u; stride > 0u; stride = stride / 2u) {
-        if (local.x < stride) {
-            sums[local.x] = sums[local.x] + sums[local.x + stride];
-        }
-        workgroupBarrier();
-    }
+    let total = workgroup_sum(local.x, e);
     if (local.x == 0u) {
         let k = atomicAdd(&residual_count, 1u);
-        residuals[k] = sums[0];
+        residuals[k] = total;
     }
 }

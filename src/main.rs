@@ -3,6 +3,13 @@
 mod cli;
 
 fn main() {
+    // Like any Unix filter, end quietly when the reader of our output goes away (`| head`),
+    // instead of panicking on a broken pipe.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let code = match cli::run() {
         Ok(code) => code,
         Err(e) => {

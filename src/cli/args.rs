@@ -37,15 +37,8 @@ pub struct MannequinArgs {
 pub struct CharacterArgs {
     /// The character (e.g. walker.glb, frames/, frames/body_%04d.obj).
     pub character: PathBuf,
-    /// Clip name (or index, e.g. 0 for an unnamed clip); without one, the rest pose.
-    #[arg(long)]
-    pub clip: Option<String>,
-    /// File units to metres.
-    #[arg(long, default_value_t = 1.0)]
-    pub scale: f32,
-    /// The file's up axis.
-    #[arg(long, value_enum, default_value_t = UpArg::Y)]
-    pub up: UpArg,
+    #[command(flatten)]
+    pub look: CharacterLook,
     /// Placement after scale and up axis [m], e.g. `--position 0,0,0.5`.
     #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0])]
     pub position: Vec<f32>,
@@ -64,13 +57,27 @@ pub struct CharacterArgs {
     /// Frames per second to sample at.
     #[arg(long, default_value_t = 60.0)]
     pub fps: f32,
-    /// Frame rate of a sequence of files (default: one file per sampled frame).
-    #[arg(long)]
-    pub sequence_fps: Option<f32>,
     /// Frames to sample (default: the clip's length, or 1 for a static mesh).
     #[arg(long)]
     pub frames: Option<usize>,
-    /// Collision particle radius [m].
+}
+
+/// How to read a character and how fine its shell is (shared by `shell` and `inspect`).
+#[derive(Args, Debug)]
+pub struct CharacterLook {
+    /// Character: clip name (or index, e.g. 0 for an unnamed clip); without one, the rest pose.
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// Character: file units to metres.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f32,
+    /// Character: the file's up axis.
+    #[arg(long, value_enum, default_value_t = UpArg::Y)]
+    pub up: UpArg,
+    /// Character: frame rate of a sequence of files (default: one file per sampled frame).
+    #[arg(long)]
+    pub sequence_fps: Option<f32>,
+    /// Character: collision particle radius [m].
     #[arg(long, default_value_t = 0.01)]
     pub radius: f32,
 }
@@ -153,21 +160,9 @@ pub enum BackendArg {
 pub struct InspectArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// For a character (any file but .json): clip, scale and sampling options.
-    #[arg(long)]
-    pub clip: Option<String>,
-    /// For a character: file units to metres.
-    #[arg(long, default_value_t = 1.0)]
-    pub scale: f32,
-    /// For a character: the file's up axis.
-    #[arg(long, value_enum, default_value_t = UpArg::Y)]
-    pub up: UpArg,
-    /// For a character: collision particle radius [m].
-    #[arg(long, default_value_t = 0.01)]
-    pub radius: f32,
-    /// For a sequence of files: their frame rate (default: one file per frame at 60 fps).
-    #[arg(long)]
-    pub sequence_fps: Option<f32>,
+    /// For a character (any file but .json).
+    #[command(flatten)]
+    pub look: CharacterLook,
 }
 
 #[derive(Args, Debug)]

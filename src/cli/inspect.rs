@@ -11,14 +11,8 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("json"));
         if !is_scene {
-            let options = drape::character::CharacterOptions {
-                clip: args.clip.clone(),
-                scale: args.scale,
-                up: super::shell::up(args.up),
-                sequence_fps: args.sequence_fps,
-                ..Default::default()
-            };
-            return super::shell::inspect(path, &options, args.radius, 60.0);
+            let options = super::shell::look_options(&args.look);
+            return super::shell::inspect(path, &options, args.look.radius, 60.0);
         }
     }
     let (scene, file) = resolve::scene(&args.scene)?;

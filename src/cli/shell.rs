@@ -1,23 +1,31 @@
 //! `drape shell`: a character's collision shell over its frames, written as a cache file; and the
 //! character half of `drape inspect`.
 
-use super::args::{CharacterArgs, MannequinArgs, ShellArgs, UpArg};
+use super::args::{CharacterArgs, CharacterLook, MannequinArgs, ShellArgs, UpArg};
 use drape::character::{cache, sequence_files, Character, CharacterOptions, ShellCache};
 use std::path::Path;
 use std::time::Instant;
 
-/// Options and frame count from what was typed.
+/// Import options from what was typed.
 pub fn options(a: &CharacterArgs) -> CharacterOptions {
     CharacterOptions {
-        clip: a.clip.clone(),
-        scale: a.scale,
-        up: up(a.up),
         time_offset: a.time_offset,
         speed: a.speed,
         looping: a.r#loop,
-        sequence_fps: a.sequence_fps,
         position: [a.position[0], a.position[1], a.position[2]],
         rotation: [a.rotation[0], a.rotation[1], a.rotation[2]],
+        ..look_options(&a.look)
+    }
+}
+
+/// The options `CharacterLook` sets.
+pub fn look_options(look: &CharacterLook) -> CharacterOptions {
+    CharacterOptions {
+        clip: look.clip.clone(),
+        scale: look.scale,
+        up: up(look.up),
+        sequence_fps: look.sequence_fps,
+        ..Default::default()
     }
 }
 
@@ -64,10 +72,10 @@ pub fn load(
 
 pub fn run(args: ShellArgs) -> anyhow::Result<i32> {
     let a = &args.character;
-    if !(a.radius.is_finite() && a.radius > 0.0) {
+    if !(a.look.radius.is_finite() && a.look.radius > 0.0) {
         return Err(drape::Error::InvalidArgument {
             flag: "--radius".into(),
-            reason: format!("must be above zero (got {})", a.radius),
+            reason: format!("must be above zero (got {})", a.look.radius),
         }
         .into());
     }
@@ -77,7 +85,7 @@ pub fn run(args: ShellArgs) -> anyhow::Result<i32> {
     let inputs = cache::input_hash(
         &sequence_files(&a.character)?,
         &options,
-        a.radius,
+        a.look.radius,
         a.fps,
         character.frames.len(),
     )?;
@@ -93,14 +101,14 @@ pub fn run(args: ShellArgs) -> anyhow::Result<i32> {
         }
     }
     let imported = start.elapsed();
-    let cache = ShellCache::build(&character, a.radius, inputs)?;
+    let cache = ShellCache::build(&character, a.look.radius, inputs)?;
     cache.write(&args.out)?;
     let bytes = std::fs::metadata(&args.out).map_or(0, |m| m.len());
     println!(
         "{}: {} particles of radius {} m over {} frames; import {:.0} ms, shell {:.0} ms; {:.2} MiB written to {}",
         a.character.display(),
         cache.shell.len(),
-        a.radius,
+        a.look.radius,
         cache.frames.len(),
         imported.as_secs_f64() * 1e3,
         (start.elapsed() - imported).as_secs_f64() * 1e3,

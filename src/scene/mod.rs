@@ -318,18 +318,20 @@ pub struct CharacterSpec {
 
 impl Default for CharacterSpec {
     fn default() -> Self {
+        // The import defaults live in one place: CharacterOptions.
+        let o = crate::character::CharacterOptions::default();
         CharacterSpec {
             name: None,
             file: String::new(),
-            clip: None,
-            scale: 1.0,
-            up: crate::character::UpAxis::Y,
-            position: [0.0; 3],
-            rotation: [0.0; 3],
-            time_offset: 0.0,
-            speed: 1.0,
-            looping: false,
-            sequence_fps: None,
+            clip: o.clip,
+            scale: o.scale,
+            up: o.up,
+            position: o.position,
+            rotation: o.rotation,
+            time_offset: o.time_offset,
+            speed: o.speed,
+            looping: o.looping,
+            sequence_fps: o.sequence_fps,
             radius: 0.01,
             friction: 0.5,
         }
