@@ -157,3 +157,62 @@ fn free_fall_matches_half_g_t_squared() {
         "y {y}, expected {expected}"
     );
 }
+
+/// The catenary y = a cosh(x/a) through two pins `span` apart with arc `length`: its sag (depth
+/// of the lowest point below the pins). Solves length = 2a sinh(span / 2a) for a by bisection.
+fn catenary_sag(span: f64, length: f64) -> f64 {
+    let (mut lo, mut hi) = (1e-6f64, 1e6f64);
+    for _ in 0..200 {
+        let a = (lo * hi).sqrt();
+        if 2.0 * a * (span / (2.0 * a)).sinh() > length {
+            lo = a;
+        } else {
+            hi = a;
+        }
+    }
+    let a = (lo * hi).sqrt();
+    a * (span / (2.0 * a)).cosh() - a
+}
+
+#[test]
+fn a_rope_between_two_pins_hangs_as_a_catenary() {
+    // 2 m of rope, 81 particles, pinned at both ends 1.6 m apart: let it settle with damping.
+    let scene = common::scene(
+        r#"{ "frames": 300, "substeps": 20, "damping": 4.0, "solver": { "iterations": 10 },
+             "garments": [{ "kind": "rope", "resolution": [81], "size": [2.0], "mass": 0.2,
+                            "position": [0, 1, 0], "rotation": [0, 0, 0], "initial_stretch": 0.8,
+                            "pins": [[0], [-1]], "stiffness": { "stretch": 100000 } }] }"#,
+    );
+    let mut sim = Simulation::new(&scene);
+    for _ in 0..scene.frames {
+        sim.step_frame();
+    }
+    let p = sim.export_positions();
+    let (left, right) = (p[0], p[80]);
+    let span = left.distance(right) as f64;
+    assert!(
+        (span - 1.6).abs() < 1e-5,
+        "the pins stay 1.6 m apart: {span}"
+    );
+    let lowest = p.iter().map(|q| q.y).fold(f32::INFINITY, f32::min);
+    let sag = (left.y - lowest) as f64;
+    let expected = catenary_sag(1.6, 2.0);
+    let speed = sim
+        .state
+        .velocities
+        .iter()
+        .map(|v| v.length())
+        .fold(0.0, f32::max);
+    assert!(
+        speed < 1e-3,
+        "the rope has settled (fastest particle {speed} m/s)"
+    );
+    eprintln!(
+        "rope sag {sag:.5} m, catenary {expected:.5} m ({:+.3} %)",
+        100.0 * (sag / expected - 1.0)
+    );
+    assert!(
+        (sag - expected).abs() <= 0.02 * expected,
+        "sag {sag:.4} m, catenary {expected:.4} m"
+    );
+}
