@@ -91,6 +91,12 @@ pub fn gpu_backend(
         BackendKind::Cpu => Ok(None),
         BackendKind::Gpu => Ok(Some(GpuSimulation::new(GpuContext::new(false)?, sim)?)),
         BackendKind::Auto => {
+            if !crate::gpu::context::hardware_present() {
+                warnings.push(
+                    "backend auto: no GPU device on this machine; simulating on the CPU".into(),
+                );
+                return Ok(None);
+            }
             let gpu = GpuContext::new(true).and_then(|ctx| GpuSimulation::new(ctx, sim));
             match gpu {
                 Ok(g) => Ok(Some(g)),

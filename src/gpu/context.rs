@@ -16,6 +16,28 @@ pub struct GpuContext {
     pub adapter: wgpu::AdapterInfo,
 }
 
+/// Whether the machine shows any GPU device at all (Linux: a `/dev/nvidia<N>` or a
+/// `/dev/dri/renderD*` node; elsewhere assumed). `auto` asks this before opening Vulkan, because
+/// opening it on a machine without a GPU costs time and makes Mesa print Wayland complaints.
+pub fn hardware_present() -> bool {
+    if !cfg!(target_os = "linux") {
+        return true;
+    }
+    let nodes = |dir: &str, prefix: &str| {
+        std::fs::read_dir(dir).is_ok_and(|entries| {
+            entries.filter_map(|e| e.ok()).any(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                name.starts_with(prefix)
+                    && name[prefix.len()..]
+                        .chars()
+                        .next()
+                        .is_some_and(|c| c.is_ascii_digit())
+            })
+        })
+    };
+    nodes("/dev", "nvidia") || nodes("/dev/dri", "renderD")
+}
+
 impl GpuContext {
     /// Opens the best adapter: a hardware one when `hardware_only`, else any (software included).
     pub fn new(hardware_only: bool) -> Result<GpuContext> {
