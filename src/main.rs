@@ -13,7 +13,8 @@ fn main() {
     let code = match cli::run() {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("drape: error: {e:#}");
+            // drape's errors already name their cause; the alternate form would repeat it.
+            eprintln!("drape: error: {e}");
             e.downcast_ref::<drape::Error>()
                 .map_or(1, drape::Error::exit_code)
         }
