@@ -37,19 +37,6 @@ fn assert_box(c: &Character, frame: usize, lo: [f32; 3], hi: [f32; 3], what: &st
     assert!(ok, "{what}: box {a} … {b}, MANIFEST says {lo:?} … {hi:?}");
 }
 
-/// Largest distance any vertex moves between consecutive frames.
-fn largest_step(c: &Character) -> f32 {
-    c.frames
-        .windows(2)
-        .map(|w| {
-            w[0].iter()
-                .zip(&w[1])
-                .map(|(p, q)| p.distance(*q))
-                .fold(0.0, f32::max)
-        })
-        .fold(0.0, f32::max)
-}
-
 #[test]
 fn cesium_man_matches_its_manifest() {
     let Some(path) = asset_path("CesiumMan/CesiumMan.glb") else {
@@ -76,7 +63,7 @@ fn cesium_man_matches_its_manifest() {
         [0.1947, 1.4472, 0.4499],
         "walk at t = 0",
     );
-    let step = largest_step(&walk);
+    let step = common::largest_step(&walk);
     assert!(
         step > 0.005 && step <= 0.044 + 1e-3,
         "walk moves {step} m per frame at most (MANIFEST: 0.044)"
@@ -139,7 +126,7 @@ fn robot_expressive_matches_its_manifest() {
             (asset.clips[asset.clip_index(name).unwrap()].duration * 60.0).ceil() as usize + 1;
         let c = clip(&asset, &path, Some(name), frames);
         assert_box(&c, 0, lo, hi, name);
-        let step = largest_step(&c);
+        let step = common::largest_step(&c);
         assert!(step > 0.0, "{name}: the clip should move");
         assert!(
             step <= manifest_step + 0.01,

@@ -3,6 +3,8 @@
 //! a 1.8 m figure whose feet stay on the floor, who raises the arms overhead, and who ends seated
 //! on the stool.
 
+mod common;
+
 use drape::character::{mannequin, Character, CharacterOptions};
 use std::path::Path;
 
@@ -49,16 +51,7 @@ fn the_figure_stands_raises_its_arms_and_sits_on_the_stool() {
                 "{name} frame {k}: a foot goes through the floor"
             );
         }
-        let step = c
-            .frames
-            .windows(2)
-            .map(|w| {
-                w[0].iter()
-                    .zip(&w[1])
-                    .map(|(a, b)| a.distance(*b))
-                    .fold(0.0, f32::max)
-            })
-            .fold(0.0, f32::max);
+        let step = common::largest_step(&c);
         assert!(
             step > 0.001 && step < 0.05,
             "{name}: largest step {step} m at 60 fps"

@@ -36,3 +36,16 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
+
+/// Largest distance any vertex of a character moves between consecutive frames [m].
+pub fn largest_step(c: &drape::character::Character) -> f32 {
+    c.frames
+        .windows(2)
+        .map(|w| {
+            w[0].iter()
+                .zip(&w[1])
+                .map(|(p, q)| p.distance(*q))
+                .fold(0.0, f32::max)
+        })
+        .fold(0.0, f32::max)
+}
