@@ -12,7 +12,8 @@
 //! 4. [`export`]: write each frame (OBJ sequences) into a staging folder.
 //! 5. [`report`]: `report.json` with counts, timings, accuracy and stability.
 //!
-//! [`bake`] runs the whole pipeline; [`bench`] times the solvers.
+//! [`bake`] runs the whole pipeline; [`bench`] times the solvers and charts speed against
+//! accuracy, with [`massspring`] (the mass-spring integrators of the literature) as reference.
 
 pub mod bake;
 pub mod bench;
@@ -22,6 +23,7 @@ pub mod error;
 pub mod export;
 pub mod garment;
 pub mod gpu;
+pub mod massspring;
 pub mod report;
 pub mod scene;
 pub mod sim;

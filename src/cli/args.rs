@@ -185,6 +185,14 @@ pub struct BenchArgs {
     /// `sizes`: grid edges to time (n × n particles).
     #[arg(long, value_delimiter = ',', default_values_t = [100u32, 316, 1000])]
     pub sizes: Vec<u32>,
+    /// `convergence`, `integrators`: folder for the CSV and SVG charts (default docs/bench);
+    /// `docs`: folder for accuracy-vs-speed.md, with the charts in its `bench/` (default docs).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// `convergence`, `integrators`, `docs`: a reduced study (few iterations, small grids) that
+    /// finishes in seconds; its numbers are not the ones the docs show.
+    #[arg(long)]
+    pub quick: bool,
     /// `sizes`: backends to time; `gpu` uses any adapter (software ones too).
     #[arg(long, value_delimiter = ',', value_enum, default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
     pub backends: Vec<BackendArg>,
@@ -196,4 +204,12 @@ pub enum BenchWhat {
     Solvers,
     /// Every backend and parallel solver at 10 000, 100 000 and 1 000 000 particles.
     Sizes,
+    /// Error after each iteration of every solver on scenes E and H, against iterations and
+    /// wall time, with 1/2/4/8 ms budgets (CSV + SVG).
+    Convergence,
+    /// Explicit Euler, midpoint, RK4, Verlet, implicit Euler and Projective Dynamics on scenes W
+    /// and F: stability limits, cost to equilibrium, accuracy against speed (CSV + SVG).
+    Integrators,
+    /// Both studies, then docs/accuracy-vs-speed.md from their results.
+    Docs,
 }

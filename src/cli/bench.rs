@@ -2,14 +2,18 @@
 //! and S, for every solver and thread count; printed and optionally written as CSV.
 
 use super::args::{BackendArg, BenchArgs, BenchWhat};
-use drape::bench::{time_frames, time_iterations, time_size, SOLVERS};
+use drape::bench::{
+    convergence, integrators, studies, time_frames, time_iterations, time_size, SOLVERS,
+};
 use drape::scene::reference;
 use drape::scene::SolverKind;
 use std::fmt::Write as _;
 
 pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
-    if args.what == BenchWhat::Sizes {
-        return sizes(&args);
+    match args.what {
+        BenchWhat::Sizes => return sizes(&args),
+        BenchWhat::Convergence | BenchWhat::Integrators | BenchWhat::Docs => return studies(&args),
+        BenchWhat::Solvers => {}
     }
     let threads = if args.threads.is_empty() {
         let all = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -137,6 +141,34 @@ fn sizes(args: &BenchArgs) -> anyhow::Result<i32> {
     if let Some(path) = &args.csv {
         std::fs::write(path, csv).map_err(|e| drape::Error::io(path, "cannot write", e))?;
         println!("wrote {}", path.display());
+    }
+    Ok(0)
+}
+
+/// `drape bench convergence|integrators|docs`: the speed-against-accuracy studies.
+fn studies(args: &BenchArgs) -> anyhow::Result<i32> {
+    let mut log = |line: &str| println!("{line}");
+    let (conv, integ) = if args.quick {
+        (convergence::Config::quick(), integrators::Config::quick())
+    } else {
+        (convergence::Config::full(), integrators::Config::full())
+    };
+    match args.what {
+        BenchWhat::Convergence => {
+            let out = args.out.clone().unwrap_or_else(|| "docs/bench".into());
+            convergence::report(&conv, &out, &mut log)?;
+            println!("wrote {}/convergence-*", out.display());
+        }
+        BenchWhat::Integrators => {
+            let out = args.out.clone().unwrap_or_else(|| "docs/bench".into());
+            integrators::report(&integ, &out, &mut log)?;
+            println!("wrote {}/integrators-*", out.display());
+        }
+        _ => {
+            let out = args.out.clone().unwrap_or_else(|| "docs".into());
+            let page = studies::write_docs(&conv, &integ, &out, args.quick, &mut log)?;
+            println!("wrote {}", page.display());
+        }
     }
     Ok(0)
 }

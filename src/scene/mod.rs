@@ -465,6 +465,9 @@ pub mod reference {
     pub const HANGING_CLOTH: &str = include_str!("../../scenes/hanging_cloth.json");
     /// Scene S: a 64 × 64 cloth dropped onto a sphere.
     pub const SPHERE_DRAPE: &str = include_str!("../../scenes/sphere_drape.json");
+    /// Scene W: a 1 m sheet hanging vertically from its two top corners (the mass-spring study's
+    /// "sheet"), run until it comes to rest.
+    pub const WASHING_LINE: &str = include_str!("../../scenes/washing_line.json");
 
     /// Parses one of the embedded reference scenes.
     pub fn load(text: &str, name: &str) -> super::Scene {

@@ -84,16 +84,37 @@ pub fn instability(
     initial: &Energy,
     integrating: bool,
 ) -> Option<String> {
-    if !state.is_finite() || !error.max_strain.is_finite() {
-        return Some("positions are no longer finite".into());
+    if !state.is_finite() {
+        return Some(NOT_FINITE.into());
     }
     if !integrating {
-        return None;
+        return (!error.max_strain.is_finite()).then(|| NOT_FINITE.into());
     }
-    if error.max_strain > 1.0 {
+    unstable_reason(true, error.max_strain, energy, initial)
+}
+
+const NOT_FINITE: &str = "positions are no longer finite";
+
+/// The stability rule of `scenes.md` on plain numbers, shared by every solver and integrator:
+/// `finite` (every position), the largest structural strain, and the energies now and at the start.
+pub fn unstable_reason(
+    finite: bool,
+    max_strain: f64,
+    energy: &Energy,
+    initial: &Energy,
+) -> Option<String> {
+    if !finite || !max_strain.is_finite() || !energy.kinetic.is_finite() {
+        return Some(NOT_FINITE.into());
+    }
+    if max_strain > 1.0 {
+        let percent = max_strain * 100.0;
+        let shown = if percent < 1e5 {
+            format!("{percent:.0}")
+        } else {
+            format!("{percent:.1e}")
+        };
         return Some(format!(
-            "a spring is stretched {:.0} % past its rest length (the limit is 100 %)",
-            error.max_strain * 100.0
+            "a spring is stretched {shown} % past its rest length (the limit is 100 %)"
         ));
     }
     // Energy released so far: by gravity, and by springs that started stretched (scene E).

@@ -2,6 +2,11 @@
 //! rotting. Times are wall clock on whatever machine runs them: they are printed and written to
 //! CSV, never asserted.
 
+pub mod chart;
+pub mod convergence;
+pub mod integrators;
+pub mod studies;
+
 use crate::bake::thread_pool;
 use crate::collide;
 use crate::error::Result;

@@ -1,0 +1,148 @@
+//! `drape bench docs --quick`: both studies in reduced form, so they cannot rot. The files they
+//! write are read back and their findings asserted on iteration counts and errors, never on time.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Rows of a CSV file as maps from column name to text.
+fn csv(path: &Path) -> Vec<BTreeMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .zip(l.split(','))
+                .map(|(h, v)| (h.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+/// Error curve of (scene, backend prefix, method) from a convergence CSV.
+fn curve(rows: &[BTreeMap<String, String>], backend: &str, method: &str) -> Vec<f64> {
+    rows.iter()
+        .filter(|r| r["backend"].starts_with(backend) && r["method"] == method)
+        .map(|r| r["error_m2"].parse().expect("error"))
+        .collect()
+}
+
+#[test]
+fn quick_studies_write_charts_tables_and_show_the_findings() {
+    let dir = common::temp_dir();
+    let out = common::drape(dir.path(), &["bench", "docs", "--quick", "--out", "docs"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let docs = dir.path().join("docs");
+    let page = std::fs::read_to_string(docs.join("accuracy-vs-speed.md")).expect("page");
+    let bench = docs.join("bench");
+    // Every chart the page shows exists and is a complete SVG.
+    for line in page.lines().filter(|l| l.starts_with("![")) {
+        let file = line
+            .split("](")
+            .nth(1)
+            .and_then(|r| r.strip_suffix(')'))
+            .expect("link");
+        let svg =
+            std::fs::read_to_string(docs.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(
+            svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"),
+            "{file}"
+        );
+    }
+    assert!(
+        page.matches("![").count() >= 10,
+        "charts on the page:\n{page}"
+    );
+
+    // Convergence on scene E, CPU: red-black ≡ sequential GS per iteration, Jacobi behind,
+    // SOR ω = 1.7 ahead; every curve starts at the same error and falls.
+    let e = csv(&bench.join("convergence-E.csv"));
+    let gs = curve(&e, "cpu", "gs");
+    let rbgs = curve(&e, "cpu", "rbgs");
+    let jacobi = curve(&e, "cpu", "jacobi");
+    let sor = curve(&e, "cpu", "rbgs ω=1.7");
+    assert_eq!(gs.len(), 21);
+    for k in 1..gs.len() {
+        assert!(
+            (rbgs[k] - gs[k]).abs() <= 5e-3 * gs[k],
+            "iteration {k}: {} vs {}",
+            rbgs[k],
+            gs[k]
+        );
+        assert!(gs[k] < gs[k - 1] && rbgs[k] < rbgs[k - 1]);
+    }
+    assert!(
+        jacobi[20] > gs[20] && sor[20] < gs[20],
+        "jacobi {} gs {} sor {}",
+        jacobi[20],
+        gs[20],
+        sor[20]
+    );
+    // Same curves on a GPU, when one is present (lavapipe here and in CI).
+    let gpu = curve(&e, "gpu", "rbgs");
+    if !gpu.is_empty() {
+        for (g, c) in gpu.iter().zip(&rbgs) {
+            assert!((g - c).abs() <= 1e-4 * c, "gpu {g} vs cpu {c}");
+        }
+    }
+    // Scene H: the step's error falls from the inertial prediction.
+    let h = csv(&bench.join("convergence-H.csv"));
+    let rbgs_h = curve(&h, "cpu", "rbgs");
+    assert!(
+        rbgs_h[20] < 0.1 * rbgs_h[0],
+        "H rbgs {} → {}",
+        rbgs_h[0],
+        rbgs_h[20]
+    );
+    // Budgets: more time never buys fewer iterations.
+    let budgets = csv(&bench.join("convergence-budgets.csv"));
+    for m in ["gs", "rbgs", "jacobi"] {
+        let its: Vec<u32> = budgets
+            .iter()
+            .filter(|r| r["scene"] == "E" && r["backend"] == "cpu" && r["method"] == m)
+            .map(|r| r["iterations"].parse().expect("iterations"))
+            .collect();
+        assert_eq!(its.len(), 4);
+        assert!(its.windows(2).all(|w| w[0] <= w[1]), "{m}: {its:?}");
+    }
+
+    // Integrators: explicit Euler never stable; Verlet's measured limit at or below 2/ω_max and
+    // within the ladder's spacing of it; implicit Euler stable at a whole frame.
+    let stability = csv(&bench.join("integrators-stability.csv"));
+    assert!(!stability.is_empty());
+    for r in &stability {
+        let omega: f64 = r["omega_max"].parse().expect("omega");
+        let limit = r["largest_stable_step_s"].parse::<f64>().ok();
+        match r["method"].as_str() {
+            "explicit_euler" => assert_eq!(limit, None, "{r:?}"),
+            "verlet" => {
+                let h = limit.expect("Verlet has a stable step");
+                assert!(h <= 2.0 / omega && h >= 0.6 * 2.0 / omega, "{r:?}");
+            }
+            "implicit_euler" => assert!(limit.expect("stable") >= 1.0 / 60.0 - 1e-12, "{r:?}"),
+            _ => {}
+        }
+    }
+    // Accuracy: RK4 gets more accurate with smaller steps, and beats Verlet at equal steps.
+    let acc = csv(&bench.join("integrators-accuracy-F.csv"));
+    let error = |m: &str, s: &str| -> f64 {
+        acc.iter()
+            .find(|r| r["method"] == m && r["substeps"] == s)
+            .and_then(|r| r["rms_error_m"].parse().ok())
+            .unwrap_or(f64::NAN)
+    };
+    assert!(
+        error("rk4", "200") < error("rk4", "100"),
+        "RK4 error must fall"
+    );
+    assert!(
+        error("rk4", "100") < error("verlet", "100"),
+        "RK4 vs Verlet"
+    );
+    // The cost table names every method at every size.
+    let cost = csv(&bench.join("integrators-cost.csv"));
+    assert_eq!(cost.len(), 2 * 6);
+}
