@@ -8,13 +8,18 @@ use crate::character::{cache::input_hash, sequence_files, Character, ShellCache}
 use crate::collide;
 use crate::collide::ShellCollider;
 use crate::error::{Error, Result};
+use crate::export::gltf::AnimatedMesh;
+use crate::export::sequence::{
+    collider_meshes, garment_meshes, write_exports, Recording, CHARACTER_COLOUR,
+};
 use crate::export::{FrameWriter, Staging};
 use crate::gpu::{GpuContext, GpuSimulation};
+use crate::render::{render_sequence, RenderOptions};
 use crate::report::{
     Adapter, Backend, CharacterReport, ColliderPenetration, Failure, FrameMetrics, GarmentReport,
     Outputs, Report, Timing, SCHEMA,
 };
-use crate::scene::{BackendKind, Scene};
+use crate::scene::{BackendKind, GltfOutput, Scene};
 use crate::sim::{metrics, Simulation};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -124,7 +129,7 @@ pub fn load_characters(
     scene: &Scene,
     cache_dir: &Path,
     warnings: &mut Vec<String>,
-) -> Result<Vec<(ShellCollider, CharacterReport)>> {
+) -> Result<Vec<LoadedCharacter>> {
     let mut out = Vec::new();
     for (i, spec) in scene.characters.iter().enumerate() {
         let path = scene.character_path(i);
@@ -169,12 +174,41 @@ pub fn load_characters(
             shell_radius: spec.radius,
             shell_cache: cache,
         };
-        out.push((
-            ShellCollider::new(name, spec.radius, spec.friction, positions),
+        // Exports and previews show the character when its topology holds over the frames.
+        let mesh = if character.same_topology() {
+            Some(AnimatedMesh {
+                name: name.clone(),
+                triangles: character.triangles_of(0).to_vec(),
+                uvs: None,
+                colour: [
+                    CHARACTER_COLOUR[0],
+                    CHARACTER_COLOUR[1],
+                    CHARACTER_COLOUR[2],
+                    1.0,
+                ],
+                frames: character.frames.clone(),
+            })
+        } else {
+            warnings.push(format!(
+                "character {name}: its topology changes between frames, so exports and previews leave it out"
+            ));
+            None
+        };
+        out.push(LoadedCharacter {
+            shell: ShellCollider::new(name, spec.radius, spec.friction, positions),
             report,
-        ));
+            mesh,
+        });
     }
     Ok(out)
+}
+
+/// A character ready for a bake: its collision shell, what the report says of it, and its mesh
+/// over frames 0…N for the exports (None when its topology changes between frames).
+pub struct LoadedCharacter {
+    pub shell: ShellCollider,
+    pub report: CharacterReport,
+    pub mesh: Option<AnimatedMesh>,
 }
 
 fn run(
@@ -187,10 +221,17 @@ fn run(
     let mut warnings = Vec::new();
     let mut characters = Vec::new();
     let cache_dir = options.shell_cache.clone().unwrap_or_else(shell_cache_dir);
-    for (shell, report) in load_characters(scene, &cache_dir, &mut warnings)? {
-        sim.shells.push(shell);
-        characters.push(report);
+    let mut character_meshes = Vec::new();
+    for c in load_characters(scene, &cache_dir, &mut warnings)? {
+        sim.shells.push(c.shell);
+        characters.push(c.report);
+        character_meshes.extend(c.mesh);
     }
+    let out = &scene.output;
+    let recording =
+        out.gltf != GltfOutput::None || out.pc2 || out.usd || out.preview || out.character_obj;
+    let rest = sim.export_positions();
+    let mut recorded: Vec<Vec<Vec3>> = Vec::new();
     let mut gpu = gpu_backend(scene, &sim, &mut warnings)?;
     let obj_dir = dir.join("obj");
     if scene.output.obj {
@@ -267,6 +308,9 @@ fn run(
             report.failure = Some(Failure { frame, reason });
             break;
         }
+        if recording {
+            recorded.push(sim.export_positions());
+        }
         if let Some(w) = &mut writer {
             w.write(frame, sim.export_positions())?;
         }
@@ -282,6 +326,56 @@ fn run(
     report.worst_penetrations = collider_penetrations(&worst_penetration);
     if sim.residuals.is_some() {
         report.residuals = Some(residuals);
+    }
+    if report.frames_baked > 0 {
+        let model = sim.model();
+        let mut meshes = garment_meshes(&model.garments, &recorded);
+        let baked = report.frames_baked as usize;
+        for mut c in character_meshes {
+            // Character frame k is the pose at garment frame k (frame 0 is the start).
+            c.frames = c.frames.into_iter().skip(1).take(baked).collect();
+            if c.frames.len() == baked {
+                meshes.push(c);
+            }
+        }
+        let characters = meshes.len() - model.garments.len();
+        meshes.extend(collider_meshes(&scene.colliders));
+        let rest: Vec<Vec<Vec3>> = model
+            .garments
+            .iter()
+            .map(|g| rest[g.export.clone()].to_vec())
+            .collect();
+        let mut materials: Vec<(String, [f32; 3])> = model
+            .garments
+            .iter()
+            .map(|g| (g.name.clone(), g.colour))
+            .collect();
+        materials.extend(
+            meshes[model.garments.len()..]
+                .iter()
+                .map(|m| (m.name.clone(), [m.colour[0], m.colour[1], m.colour[2]])),
+        );
+        let recording = Recording {
+            meshes: if recording { &meshes } else { &[] },
+            garments: model.garments.len(),
+            characters,
+            rest: &rest,
+            materials: &materials,
+            fps: scene.fps,
+        };
+        let (outputs, exports) = write_exports(dir, &scene.name, out, &recording)?;
+        report.outputs = outputs;
+        report.exports = exports;
+        if out.preview {
+            let options = RenderOptions {
+                width: out.preview_size[0],
+                height: out.preview_size[1],
+                wireframe: out.wireframe,
+            };
+            let summary = render_sequence(GpuContext::new(false)?, &meshes, options, dir)?;
+            report.outputs.preview = Some(summary.contact_sheet.clone());
+            report.preview = Some(summary);
+        }
     }
     Ok((report, sim.export_positions()))
 }
@@ -335,7 +429,10 @@ fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads:
         residuals: None,
         outputs: Outputs {
             obj: scene.output.obj.then(|| "obj".to_string()),
+            ..Outputs::default()
         },
+        exports: Vec::new(),
+        preview: None,
     }
 }
 

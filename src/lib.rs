@@ -9,7 +9,8 @@
 //! 3. [`sim`]: lay the garments out for the solver ([`sim::Model`], [`sim::State`]) and step:
 //!    predict (Verlet) → solve (Projective Dynamics / PBD) → [`collide`] → commit; on the CPU,
 //!    or with the same stages in compute shaders on the GPU ([`gpu`]).
-//! 4. [`export`]: write each frame (OBJ sequences) into a staging folder.
+//! 4. [`export`]: write the frames (OBJ sequences, glTF, PC2, USD) into a staging folder;
+//!    [`render`]: preview images of them, off-screen on any GPU adapter.
 //! 5. [`report`]: `report.json` with counts, timings, accuracy and stability.
 //!
 //! [`bake`] runs the whole pipeline; [`bench`] times the solvers and charts speed against
@@ -24,6 +25,7 @@ pub mod export;
 pub mod garment;
 pub mod gpu;
 pub mod massspring;
+pub mod render;
 pub mod report;
 pub mod scene;
 pub mod sim;

@@ -142,6 +142,24 @@ fn quick_studies_write_charts_tables_and_show_the_findings() {
         error("rk4", "100") < error("verlet", "100"),
         "RK4 vs Verlet"
     );
+    // The rule 0.4π√(m/k): holds for RK4 on a chain, fails for Verlet on scene W; Verlet on the
+    // chain within 5 % of its theory 2/ω_max.
+    let rule = csv(&bench.join("integrators-rule.csv"));
+    let value = |case: &str, column: &str| -> f64 {
+        rule.iter()
+            .find(|r| r["case"].starts_with(case))
+            .and_then(|r| r[column].parse().ok())
+            .unwrap_or_else(|| panic!("{case} {column} in {rule:?}"))
+    };
+    let bound = 0.4 * std::f64::consts::PI;
+    assert!(value("rope", "rk4_limit_over_sqrt_m_over_k") >= bound);
+    assert!(value("scene W", "verlet_limit_over_sqrt_m_over_k") < bound);
+    let chain_theory = 2.0 / value("rope", "omega_max_sqrt_m_over_k");
+    let chain_verlet = value("rope", "verlet_limit_over_sqrt_m_over_k");
+    assert!(
+        (chain_verlet / chain_theory - 1.0).abs() < 0.05,
+        "{chain_verlet} vs {chain_theory}"
+    );
     // The cost table names every method at every size.
     let cost = csv(&bench.join("integrators-cost.csv"));
     assert_eq!(cost.len(), 2 * 6);

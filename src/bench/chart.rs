@@ -56,6 +56,30 @@ pub struct Chart {
     pub series: Vec<Series>,
     /// Vertical lines at x with a label.
     pub guides: Vec<(f64, String)>,
+    /// Legend in the lower left corner instead of the upper right (for curves that fall to the
+    /// right).
+    pub legend_lower_left: bool,
+}
+
+/// An axis label: three significant digits, in scientific notation outside [0.01, 10⁵).
+fn tick(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if (0.01..1e5).contains(&a) {
+        let digits = (2 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{v:.2e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+        format!("{mantissa}e{exponent}")
+    }
 }
 
 const PALETTE: [RGBColor; 10] = [
@@ -140,6 +164,8 @@ impl Chart {
                     .configure_mesh()
                     .x_desc(self.x_label.as_str())
                     .y_desc(self.y_label.as_str())
+                    .x_label_formatter(&|v| tick(*v))
+                    .y_label_formatter(&|v| tick(*v))
                     .draw()
                     .map_err(|e| fail(&e))?;
                 for (x, label) in &self.guides {
@@ -216,7 +242,11 @@ impl Chart {
                     .configure_series_labels()
                     .background_style(WHITE.mix(0.85))
                     .border_style(BLACK)
-                    .position(SeriesLabelPosition::UpperRight)
+                    .position(if self.legend_lower_left {
+                        SeriesLabelPosition::LowerLeft
+                    } else {
+                        SeriesLabelPosition::UpperRight
+                    })
                     .draw()
                     .map_err(|e| fail(&e))?;
             }};

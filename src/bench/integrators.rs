@@ -21,7 +21,7 @@ use std::time::Instant;
 /// Frames per second of every study run (the scenes' 60 fps).
 pub const FRAME_RATE: f64 = 60.0;
 
-/// Steps per frame tried when searching for the largest stable step, smallest first.
+/// Steps per frame tried first when searching for the largest stable step, largest step first.
 pub const SUBSTEP_LADDER: [u32; 40] = [
     1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 20, 25, 30, 40, 50, 60, 80, 100, 120, 150, 200, 250, 300, 400,
     500, 600, 800, 1000, 1200, 1500, 2000, 2500, 3000, 4000, 5000, 6000, 8000, 10000, 12000, 15000,
@@ -211,23 +211,40 @@ pub fn simulate(
     outcome
 }
 
-/// The largest step of the ladder at which `method` stays stable for `duration` seconds on
-/// `build()`, searching steps no smaller than `smallest` [s]; `None` when every one blew up.
+/// The largest step h = 1/(60·s), s a whole number of steps per frame, at which `method` stays
+/// stable for `duration` seconds on `build()`, searching steps no smaller than `smallest` [s];
+/// `None` when every one blew up. The ladder finds the first stable rung from the top, then a
+/// bisection over the whole numbers between it and the unstable rung above pins the limit down.
 pub fn largest_stable_step(
     build: &dyn Fn() -> MassSpring,
     method: Method,
     duration: f64,
     smallest: f64,
 ) -> Option<(f64, Outcome)> {
+    let run = |s: u32| simulate(&mut build(), method, s, duration, false, |_| {});
+    let mut unstable = 0u32; // the last rung that blew up (0: none yet)
     for &s in SUBSTEP_LADDER.iter() {
-        let h = 1.0 / (FRAME_RATE * s as f64);
-        if h < smallest {
+        if 1.0 / (FRAME_RATE * s as f64) < smallest {
             return None;
         }
-        let outcome = simulate(&mut build(), method, s, duration, false, |_| {});
-        if outcome.stable() {
-            return Some((h, outcome));
+        let outcome = run(s);
+        if !outcome.stable() {
+            unstable = s;
+            continue;
         }
+        // Stable at s, unstable at `unstable`: the fewest stable steps per frame in between.
+        let (mut low, mut high, mut best) = (unstable, s, outcome);
+        while high - low > 1 {
+            let mid = low + (high - low) / 2;
+            let outcome = run(mid);
+            if outcome.stable() {
+                high = mid;
+                best = outcome;
+            } else {
+                low = mid;
+            }
+        }
+        return Some((best.step, best));
     }
     None
 }
@@ -240,6 +257,7 @@ pub fn substeps_for(h: f64) -> u32 {
 /// One row of the stability study.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StabilityRow {
+    pub particles: usize,
     /// Structural stiffness k [N/m].
     pub stiffness: f64,
     pub method: String,
@@ -250,36 +268,93 @@ pub struct StabilityRow {
     pub largest_stable: Option<f64>,
 }
 
-/// Largest stable step of each method at each stiffness multiplier on scene W at `n` × `n`.
+/// Largest stable step of each method on scene W for each (grid edge, stiffness multiplier).
 pub fn stability_study(
-    n: u32,
-    stiffness: &[f32],
+    cases: &[(u32, f32)],
     methods: &[Method],
     duration: f64,
 ) -> Vec<StabilityRow> {
     let mut rows = Vec::new();
-    for &scale in stiffness {
+    for &(n, scale) in cases {
         let build = || StudyScene::WashingLine.build(n, scale);
-        let sys = build();
-        let (omega, _) = highest_frequency(&sys);
-        let k = sys
-            .springs
-            .iter()
-            .find(|s| s.structural)
-            .map_or(0.0, |s| s.stiffness);
-        for &method in methods {
-            // Search down to 1/50 of Verlet's predicted limit.
-            let found = largest_stable_step(&build, method, duration, 0.04 / omega);
-            rows.push(StabilityRow {
-                stiffness: k,
-                method: method.name(),
-                particle_mass: sys.mass[0],
-                omega_max: omega,
-                largest_stable: found.map(|(h, _)| h),
-            });
-        }
+        rows.extend(stability_rows(&build, methods, duration));
     }
     rows
+}
+
+/// Largest stable step of each method on the model `build` makes.
+pub fn stability_rows(
+    build: &dyn Fn() -> MassSpring,
+    methods: &[Method],
+    duration: f64,
+) -> Vec<StabilityRow> {
+    let sys = build();
+    let (omega, _) = highest_frequency(&sys);
+    let k = sys
+        .springs
+        .iter()
+        .find(|s| s.structural)
+        .map_or(0.0, |s| s.stiffness);
+    methods
+        .iter()
+        .map(|&method| StabilityRow {
+            particles: sys.len(),
+            stiffness: k,
+            method: method.name(),
+            particle_mass: sys.mass[0],
+            omega_max: omega,
+            // Search down to 1/50 of Verlet's predicted limit.
+            largest_stable: largest_stable_step(build, method, duration, 0.04 / omega)
+                .map(|(h, _)| h),
+        })
+        .collect()
+}
+
+/// Spring networks of growing connectivity on which to test the rule h < 0.4π√(m/k): a chain,
+/// a sheet with structural springs only, with shear, and scene W. Each case is (name, model);
+/// the springs are stiffened (the rope 100 ×, the sheets 10 ×) so that the limits fall at tens
+/// of steps per frame, where whole steps per frame resolve them to a few per cent.
+pub fn rule_cases() -> Vec<(&'static str, MassSpring)> {
+    let base = reference::load(reference::WASHING_LINE, "washing_line.json");
+    let env = |scene: &crate::scene::Scene| Environment {
+        gravity: glam::Vec3::from(scene.gravity).as_dvec3(),
+        drag: scene.damping as f64,
+        spring_damping: 0.0,
+        wind: None,
+    };
+    let case = |name: &'static str, edit: &dyn Fn(&mut crate::scene::GarmentSpec)| {
+        let mut scene = base.clone();
+        edit(&mut scene.garments[0]);
+        let garment = Garment::build(name.into(), &scene.garments[0]);
+        (name, MassSpring::from_garment(&garment, env(&scene)))
+    };
+    vec![
+        case("rope of 20 pinned at one end (a chain)", &|g| {
+            g.kind = crate::scene::GarmentKind::Rope;
+            g.resolution = vec![20];
+            g.size = vec![1.0];
+            g.pins = vec![vec![0]];
+            g.stiffness.stretch *= 100.0;
+        }),
+        case("sheet 20 × 20 with structural springs only", &|g| {
+            g.resolution = vec![20, 20];
+            g.stiffness.stretch *= 10.0;
+            g.stiffness.shear = 0.0;
+            g.stiffness.bend = 0.0;
+        }),
+        case("sheet 20 × 20 with structural and shear springs", &|g| {
+            g.resolution = vec![20, 20];
+            g.stiffness.stretch *= 10.0;
+            g.stiffness.shear *= 10.0;
+            g.stiffness.bend = 0.0;
+        }),
+        case("scene W 20 × 20 (structural and shear and bend)", &|g| {
+            g.resolution = vec![20, 20];
+            g.stiffness.stretch *= 10.0;
+            g.stiffness.shear *= 10.0;
+            g.stiffness.bend *= 10.0;
+        }),
+    ]
 }
 
 /// Root-mean-square distance between two position sets [m].
@@ -350,411 +425,4 @@ pub fn accuracy_study(
         }
     }
     points
-}
-
-/// What `drape bench integrators` measures.
-#[derive(Clone, Debug)]
-pub struct Config {
-    /// Grid edge of the stability study (scene W).
-    pub stability_n: u32,
-    /// Stiffness multipliers of the stability study (1 = scene W's springs).
-    pub stiffness: Vec<f32>,
-    /// Simulated seconds a step must survive to count as stable.
-    pub stability_duration: f64,
-    /// Grid edges of the cost-to-equilibrium study (scene W).
-    pub sizes: Vec<u32>,
-    /// Grid edge of the accuracy study, and the most simulated seconds it compares over (each
-    /// scene has its own window, [`StudyScene::accuracy_window`]).
-    pub accuracy_n: u32,
-    pub accuracy_duration: f64,
-    /// Steps per frame of the converged reference (RK4).
-    pub reference_substeps: u32,
-    /// Scenes of the accuracy study.
-    pub scenes: Vec<StudyScene>,
-}
-
-impl Config {
-    /// The full study the docs show.
-    pub fn full() -> Config {
-        Config {
-            stability_n: 20,
-            stiffness: vec![0.1, 0.3, 1.0, 3.0, 10.0],
-            stability_duration: 1.0,
-            sizes: vec![10, 20, 50, 100],
-            accuracy_n: 20,
-            accuracy_duration: 1.0,
-            reference_substeps: 4000,
-            scenes: vec![StudyScene::WashingLine, StudyScene::Flag],
-        }
-    }
-
-    /// A reduced study for tests: 8 × 8 grids, short runs.
-    pub fn quick() -> Config {
-        Config {
-            stability_n: 8,
-            stiffness: vec![1.0, 10.0],
-            stability_duration: 0.25,
-            sizes: vec![8, 12],
-            accuracy_n: 8,
-            accuracy_duration: 0.25,
-            reference_substeps: 1000,
-            scenes: vec![StudyScene::WashingLine, StudyScene::Flag],
-        }
-    }
-}
-
-/// Projective Dynamics iterations per step in the study.
-pub const PD_ITERATIONS: u32 = 10;
-
-/// Steps per frame each method runs at in the accuracy study.
-fn accuracy_runs() -> Vec<(Method, Vec<u32>)> {
-    vec![
-        (Method::ExplicitEuler, vec![100, 400, 1600]),
-        (Method::Midpoint, vec![60, 100, 200, 400, 800]),
-        (Method::Rk4, vec![40, 50, 100, 200, 400]),
-        (Method::Verlet, vec![50, 100, 200, 400, 800]),
-        (Method::ImplicitEuler, vec![1, 2, 5, 10, 20, 50, 100, 200]),
-        (
-            Method::ProjectiveDynamics(PD_ITERATIONS),
-            vec![2, 5, 10, 20, 50, 100],
-        ),
-        (Method::ProjectiveDynamics(1), vec![20, 50, 100, 200, 400]),
-    ]
-}
-
-/// Steps per frame each method runs at in the cost study, given Verlet's predicted limit `h_verlet`:
-/// the explicit methods at 0.8 × their predicted limit (explicit Euler and midpoint at Verlet's,
-/// where theory says they fail), implicit Euler at one step per frame and Projective Dynamics at
-/// 10 (drape's sphere-drape setting).
-fn cost_runs(h_verlet: f64) -> Vec<(Method, u32)> {
-    let verlet = substeps_for(0.8 * h_verlet);
-    vec![
-        (Method::ExplicitEuler, verlet),
-        (Method::Midpoint, verlet),
-        (
-            Method::Rk4,
-            substeps_for(0.8 * h_verlet * std::f64::consts::SQRT_2),
-        ),
-        (Method::Verlet, verlet),
-        (Method::ImplicitEuler, 1),
-        (Method::ProjectiveDynamics(PD_ITERATIONS), 10),
-    ]
-}
-
-/// Runs the study, writes CSV and SVG charts into `out` and returns the Markdown section.
-pub fn report(
-    cfg: &Config,
-    out: &std::path::Path,
-    log: &mut dyn FnMut(&str),
-) -> crate::Result<String> {
-    use super::chart::{write_atomically, Chart, Series, Style};
-    use std::fmt::Write as _;
-    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, "cannot create", e))?;
-    let folder = out
-        .file_name()
-        .map_or("bench".into(), |f| f.to_string_lossy().into_owned());
-    let methods = Method::all(PD_ITERATIONS);
-    let mut md = String::new();
-
-    // 1. Largest stable step against stiffness, beside the predictions.
-    let rows = stability_study(
-        cfg.stability_n,
-        &cfg.stiffness,
-        &methods,
-        cfg.stability_duration,
-    );
-    let mut csv =
-        String::from("stiffness_n_per_m,method,particle_mass_kg,omega_max,largest_stable_step_s\n");
-    for r in &rows {
-        let _ = writeln!(
-            csv,
-            "{},{},{:e},{:.3},{}",
-            r.stiffness,
-            r.method,
-            r.particle_mass,
-            r.omega_max,
-            r.largest_stable.map_or(String::new(), |h| format!("{h:e}"))
-        );
-        log(&format!(
-            "stability k={:<7} {:<16} ω_max {:>9.1}: largest stable step {}",
-            r.stiffness,
-            r.method,
-            r.omega_max,
-            r.largest_stable
-                .map_or("none".into(), |h| format!("{h:.3e} s"))
-        ));
-    }
-    write_atomically(&out.join("integrators-stability.csv"), csv.as_bytes())?;
-    let mut ks: Vec<(f64, f64, f64)> = rows
-        .iter()
-        .map(|r| (r.stiffness, r.omega_max, r.particle_mass))
-        .collect();
-    ks.dedup_by(|a, b| a.0 == b.0);
-    let mut chart = Chart {
-        title: format!(
-            "Scene W {0}×{0}: largest stable step against stiffness",
-            cfg.stability_n
-        ),
-        x_label: "structural stiffness k [N/m]".into(),
-        y_label: "largest stable step h [s]".into(),
-        x_log: true,
-        y_log: true,
-        ..Chart::default()
-    };
-    for (c, m) in methods.iter().enumerate() {
-        let points: Vec<(f64, f64)> = rows
-            .iter()
-            .filter(|r| r.method == m.name())
-            .filter_map(|r| r.largest_stable.map(|h| (r.stiffness, h)))
-            .collect();
-        if !points.is_empty() {
-            chart.series.push(Series::new(
-                format!("{} (measured)", m.name()),
-                points,
-                Style::Line,
-                c,
-            ));
-        }
-    }
-    // Predicted stable steps as functions of (k, ω_max, m), with a legend and a colour.
-    type Prediction = (&'static str, fn(f64, f64, f64) -> f64, usize);
-    let predictions: [Prediction; 3] = [
-        ("2/ω_max (Verlet)", |_, w, _| 2.0 / w, 3),
-        (
-            "2√2/ω_max (RK4)",
-            |_, w, _| 2.0 * std::f64::consts::SQRT_2 / w,
-            2,
-        ),
-        (
-            "0.4π√(m/k) (rule quoted by the study)",
-            |k, _, m| 0.4 * std::f64::consts::PI * (m / k).sqrt(),
-            7,
-        ),
-    ];
-    for (name, f, c) in &predictions {
-        chart.series.push(Series::new(
-            *name,
-            ks.iter().map(|&(k, w, m)| (k, f(k, w, m))).collect(),
-            Style::Dashed,
-            *c,
-        ));
-    }
-    chart.write_svg(&out.join("integrators-stability.svg"))?;
-    let _ = writeln!(
-        md,
-        "### Largest stable step (scene W, {0} × {0}, {1} s per try)\n\n![largest stable step against stiffness]({folder}/integrators-stability.svg)\n",
-        cfg.stability_n, cfg.stability_duration
-    );
-    let _ = write!(
-        md,
-        "| k [N/m] | ω_max [rad/s] | 2/ω_max | 2√2/ω_max | 0.4π√(m/k) |"
-    );
-    for m in &methods {
-        let _ = write!(md, " {} |", m.name());
-    }
-    let _ = writeln!(md, "\n|{}", "---|".repeat(5 + methods.len()));
-    for &(k, w, m) in &ks {
-        let _ = write!(
-            md,
-            "| {k} | {w:.0} | {:.3e} | {:.3e} | {:.3e} |",
-            2.0 / w,
-            2.0 * std::f64::consts::SQRT_2 / w,
-            0.4 * std::f64::consts::PI * (m / k).sqrt()
-        );
-        for method in &methods {
-            let r = rows
-                .iter()
-                .find(|r| r.stiffness == k && r.method == method.name());
-            let cell = match r.and_then(|r| r.largest_stable) {
-                Some(h) if h >= 1.0 / FRAME_RATE => format!("≥ {h:.3e}"),
-                Some(h) => format!("{h:.3e}"),
-                None => "none".into(),
-            };
-            let _ = write!(md, " {cell} |");
-        }
-        md.push('\n');
-    }
-    md.push('\n');
-
-    // 2. Cost to equilibrium against mesh size.
-    let mut csv = String::from("particles,method,substeps,step_s,stable,blowup_step,blowup_time_s,blowup_reason,equilibrium_s,wall_per_simulated_s,wall_s,cg_per_step\n");
-    let mut table = String::from("| particles | method | step [s] | result | equilibrium [s] | wall s per simulated s | wall s to equilibrium | CG iterations/step |\n|---|---|---|---|---|---|---|---|\n");
-    let mut cost_points: Vec<(String, f64, f64)> = Vec::new();
-    for &n in &cfg.sizes {
-        let sys = StudyScene::WashingLine.build(n, 1.0);
-        let (w, _) = highest_frequency(&sys);
-        for (method, s) in cost_runs(2.0 / w) {
-            let mut sys = StudyScene::WashingLine.build(n, 1.0);
-            let o = simulate(
-                &mut sys,
-                method,
-                s,
-                StudyScene::WashingLine.duration(),
-                true,
-                |_| {},
-            );
-            let result = match &o.blowup {
-                Some(b) => format!(
-                    "unstable at step {} (t = {:.3} s): {}",
-                    b.step, b.time, b.reason
-                ),
-                None => "stable".into(),
-            };
-            log(&format!(
-                "cost n={n:<4} {:<16} {s:>5} steps/frame: {result}, equilibrium {:?}, {:.3} wall s per simulated s",
-                method.name(),
-                o.equilibrium,
-                o.wall_per_second()
-            ));
-            let to_rest = o.equilibrium.map(|t| t * o.wall_per_second());
-            let _ = writeln!(
-                csv,
-                "{},{},{s},{:e},{},{},{},\"{}\",{},{:e},{:e},{:.2}",
-                o.particles,
-                o.method,
-                o.step,
-                o.stable(),
-                o.blowup
-                    .as_ref()
-                    .map_or(String::new(), |b| b.step.to_string()),
-                o.blowup
-                    .as_ref()
-                    .map_or(String::new(), |b| b.time.to_string()),
-                o.blowup
-                    .as_ref()
-                    .map_or(String::new(), |b| b.reason.clone()),
-                o.equilibrium.map_or(String::new(), |t| t.to_string()),
-                o.wall_per_second(),
-                o.wall,
-                o.cg_per_step
-            );
-            let _ = writeln!(
-                table,
-                "| {} | {} | {:.3e} | {} | {} | {:.3} | {} | {} |",
-                o.particles,
-                o.method,
-                o.step,
-                result,
-                o.equilibrium
-                    .map_or("not reached".into(), |t| format!("{t:.2}")),
-                o.wall_per_second(),
-                to_rest.map_or("—".into(), |t| format!("{t:.2}")),
-                if method == Method::ImplicitEuler {
-                    format!("{:.1}", o.cg_per_step)
-                } else {
-                    "—".into()
-                }
-            );
-            if let Some(t) = to_rest {
-                cost_points.push((o.method.clone(), o.particles as f64, t));
-            }
-        }
-    }
-    write_atomically(&out.join("integrators-cost.csv"), csv.as_bytes())?;
-    let mut chart = Chart {
-        title: "Scene W: wall time to equilibrium against mesh size".into(),
-        x_label: "particles".into(),
-        y_label: "wall time to equilibrium [s]".into(),
-        x_log: true,
-        y_log: true,
-        ..Chart::default()
-    };
-    for (c, m) in methods.iter().enumerate() {
-        let points: Vec<(f64, f64)> = cost_points
-            .iter()
-            .filter(|p| p.0 == m.name())
-            .map(|p| (p.1, p.2))
-            .collect();
-        if !points.is_empty() {
-            chart
-                .series
-                .push(Series::new(m.name(), points, Style::Line, c));
-        }
-    }
-    if !chart.series.is_empty() {
-        chart.write_svg(&out.join("integrators-cost.svg"))?;
-    }
-    let _ = writeln!(
-        md,
-        "### Cost to equilibrium (scene W)\n\nExplicit methods at 0.8 × their predicted limit (explicit Euler and midpoint at Verlet's), implicit Euler at one step per frame, Projective Dynamics ({PD_ITERATIONS} iterations) at 10 steps per frame. Equilibrium: the fastest particle below 1 mm/s for 10 frames.\n\n![wall time to equilibrium against particles]({folder}/integrators-cost.svg)\n\n{table}"
-    );
-
-    // 3. Accuracy against wall time, per scene.
-    for &scene in &cfg.scenes {
-        let window = cfg.accuracy_duration.min(scene.accuracy_window());
-        let points = accuracy_study(
-            scene,
-            cfg.accuracy_n,
-            window,
-            cfg.reference_substeps,
-            &accuracy_runs(),
-        );
-        let letter = scene.letter();
-        let mut csv =
-            String::from("scene,method,substeps,step_s,rms_error_m,wall_per_simulated_s\n");
-        for p in &points {
-            let _ = writeln!(
-                csv,
-                "{letter},{},{},{:e},{},{:e}",
-                p.method,
-                p.substeps,
-                p.step,
-                p.error.map_or(String::new(), |e| format!("{e:e}")),
-                p.wall_per_second
-            );
-            log(&format!(
-                "accuracy {letter} {:<16} {:>5} steps/frame: error {}, {:.4} wall s per simulated s",
-                p.method,
-                p.substeps,
-                p.error.map_or("unstable".into(), |e| format!("{e:.3e} m")),
-                p.wall_per_second
-            ));
-        }
-        write_atomically(
-            &out.join(format!("integrators-accuracy-{letter}.csv")),
-            csv.as_bytes(),
-        )?;
-        let mut chart = Chart {
-            title: format!(
-                "Scene {letter} {0}×{0}: error against a converged reference vs. wall time",
-                cfg.accuracy_n
-            ),
-            x_label: "wall seconds per simulated second".into(),
-            y_label: "RMS distance to the reference [m]".into(),
-            x_log: true,
-            y_log: true,
-            ..Chart::default()
-        };
-        let names: Vec<String> = accuracy_runs().iter().map(|(m, _)| m.name()).collect();
-        for (c, name) in names.iter().enumerate() {
-            let pts: Vec<(f64, f64)> = points
-                .iter()
-                .filter(|p| &p.method == name)
-                .filter_map(|p| p.error.map(|e| (p.wall_per_second, e)))
-                .collect();
-            if !pts.is_empty() {
-                chart
-                    .series
-                    .push(Series::new(name.clone(), pts, Style::Line, c));
-            }
-        }
-        chart.write_svg(&out.join(format!("integrators-accuracy-{letter}.svg")))?;
-        let _ = writeln!(
-            md,
-            "### Accuracy against speed (scene {letter}, {0} × {0}, {1} s; reference RK4 at {2} steps per frame)\n\n![error against wall time]({folder}/integrators-accuracy-{letter}.svg)\n\n| method | steps/frame | RMS error [m] | wall s per simulated s |\n|---|---|---|---|",
-            cfg.accuracy_n, window, cfg.reference_substeps
-        );
-        for p in &points {
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {:.4} |",
-                p.method,
-                p.substeps,
-                p.error.map_or("unstable".into(), |e| format!("{e:.2e}")),
-                p.wall_per_second
-            );
-        }
-        md.push('\n');
-    }
-    Ok(md)
 }

@@ -4,6 +4,7 @@
 
 pub mod chart;
 pub mod convergence;
+pub mod integrator_report;
 pub mod integrators;
 pub mod studies;
 

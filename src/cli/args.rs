@@ -23,6 +23,37 @@ pub enum Command {
     Shell(ShellArgs),
     /// Write drape's procedural mannequin (clips raise_arms and sit) and its stool as OBJ frames.
     Mannequin(MannequinArgs),
+    /// Render preview images of an existing bake (its glTF) into BAKE_DIR/preview.
+    Render(RenderArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A folder `drape bake` wrote (with a glTF export).
+    pub bake_dir: PathBuf,
+    /// Image size, e.g. 1280x720.
+    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Draw the triangles' edges over the shading.
+    #[arg(long)]
+    pub wireframe: bool,
+}
+
+/// Parses `WIDTHxHEIGHT`.
+pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text
+        .split_once(['x', 'X', '×'])
+        .ok_or_else(|| format!("{text:?}: expected WIDTHxHEIGHT, e.g. 1280x720"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=8192).contains(n))
+            .ok_or_else(|| {
+                format!("{text:?}: each side must be a whole number of pixels in 1…8192")
+            })
+    };
+    Ok((parse(w)?, parse(h)?))
 }
 
 #[derive(Args, Debug)]
@@ -146,6 +177,32 @@ pub struct BakeArgs {
     /// ones too), `auto` a hardware GPU when there is one, else the CPU.
     #[arg(long, value_enum)]
     pub backend: Option<BackendArg>,
+    /// Also render preview images (`preview/frame_0001.png …`, `preview/contact_sheet.png`).
+    #[arg(long)]
+    pub preview: bool,
+    /// Preview size, e.g. 1280x720 (overrides the scene's `output.preview_size`).
+    #[arg(long, value_parser = parse_size)]
+    pub preview_size: Option<(u32, u32)>,
+    /// Draw the triangles' edges over the preview.
+    #[arg(long)]
+    pub wireframe: bool,
+    /// glTF container, overriding the scene's `output.gltf`.
+    #[arg(long, value_enum)]
+    pub gltf: Option<GltfArg>,
+    /// Also write PC2 point caches with rest OBJs into `pc2/`.
+    #[arg(long)]
+    pub pc2: bool,
+    /// Also write a USD layer with time-sampled points.
+    #[arg(long)]
+    pub usd: bool,
+}
+
+/// glTF container on the command line.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GltfArg {
+    Glb,
+    Gltf,
+    None,
 }
 
 /// Where to simulate.

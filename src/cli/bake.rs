@@ -1,9 +1,9 @@
 //! `drape bake`: simulate a scene and write its frames and report.
 
-use super::args::{BackendArg, BakeArgs};
+use super::args::{BackendArg, BakeArgs, GltfArg};
 use super::resolve;
 use drape::bake::{bake, BakeOptions};
-use drape::scene::BackendKind;
+use drape::scene::{BackendKind, GltfOutput};
 use std::path::PathBuf;
 
 pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
@@ -13,6 +13,21 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
             BackendArg::Cpu => BackendKind::Cpu,
             BackendArg::Gpu => BackendKind::Gpu,
             BackendArg::Auto => BackendKind::Auto,
+        };
+    }
+    let o = &mut scene.output;
+    o.preview |= args.preview;
+    o.wireframe |= args.wireframe;
+    o.pc2 |= args.pc2;
+    o.usd |= args.usd;
+    if let Some((w, h)) = args.preview_size {
+        o.preview_size = [w, h];
+    }
+    if let Some(g) = args.gltf {
+        o.gltf = match g {
+            GltfArg::Glb => GltfOutput::Glb,
+            GltfArg::Gltf => GltfOutput::Gltf,
+            GltfArg::None => GltfOutput::None,
         };
     }
     let out = args
@@ -43,6 +58,26 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         r.particles,
         r.ms_per_frame.median,
     );
+    for e in &r.exports {
+        println!(
+            "wrote {}: {} files, {:.1} MB in {:.0} ms",
+            e.format,
+            e.files,
+            e.bytes as f64 / 1e6,
+            e.ms
+        );
+    }
+    if let Some(p) = &r.preview {
+        println!(
+            "rendered {} preview frames at {}×{} on {}: {:.0} ms per frame; contact sheet {}",
+            p.frames,
+            p.width,
+            p.height,
+            p.adapter,
+            p.ms_per_frame,
+            result.out.join(&p.contact_sheet).display()
+        );
+    }
     if let Some(last) = &r.last_frame {
         println!(
             "last frame: mean strain {:.3} %, max strain {:.3} %, total squared error {:.3e} m²",

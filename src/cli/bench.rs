@@ -3,7 +3,7 @@
 
 use super::args::{BackendArg, BenchArgs, BenchWhat};
 use drape::bench::{
-    convergence, integrators, studies, time_frames, time_iterations, time_size, SOLVERS,
+    convergence, integrator_report, studies, time_frames, time_iterations, time_size, SOLVERS,
 };
 use drape::scene::reference;
 use drape::scene::SolverKind;
@@ -149,9 +149,15 @@ fn sizes(args: &BenchArgs) -> anyhow::Result<i32> {
 fn studies(args: &BenchArgs) -> anyhow::Result<i32> {
     let mut log = |line: &str| println!("{line}");
     let (conv, integ) = if args.quick {
-        (convergence::Config::quick(), integrators::Config::quick())
+        (
+            convergence::Config::quick(),
+            integrator_report::Config::quick(),
+        )
     } else {
-        (convergence::Config::full(), integrators::Config::full())
+        (
+            convergence::Config::full(),
+            integrator_report::Config::full(),
+        )
     };
     match args.what {
         BenchWhat::Convergence => {
@@ -161,7 +167,7 @@ fn studies(args: &BenchArgs) -> anyhow::Result<i32> {
         }
         BenchWhat::Integrators => {
             let out = args.out.clone().unwrap_or_else(|| "docs/bench".into());
-            integrators::report(&integ, &out, &mut log)?;
+            integrator_report::report(&integ, &out, &mut log)?;
             println!("wrote {}/integrators-*", out.display());
         }
         _ => {

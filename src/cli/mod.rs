@@ -5,6 +5,7 @@ mod args;
 mod bake;
 mod bench;
 mod inspect;
+mod render;
 mod resolve;
 mod shell;
 
@@ -19,5 +20,6 @@ pub fn run() -> anyhow::Result<i32> {
         args::Command::Bench(a) => bench::run(a),
         args::Command::Shell(a) => shell::run(a),
         args::Command::Mannequin(a) => shell::mannequin(a),
+        args::Command::Render(a) => render::run(a),
     }
 }

@@ -11,6 +11,51 @@ use glam::Vec3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// The material library every OBJ frame refers to.
+pub const MATERIALS: &str = "materials.mtl";
+
+/// Writes `dir/materials.mtl`: one diffuse material per garment (and character), named after it.
+pub fn write_materials(dir: &Path, materials: &[(String, [f32; 3])]) -> Result<PathBuf> {
+    let path = dir.join(MATERIALS);
+    let mut s = String::from("# drape materials: one per garment, named after it\n");
+    for (name, [r, g, b]) in materials {
+        let _ = writeln!(
+            s,
+            "\nnewmtl {name}\nKa 0 0 0\nKd {r} {g} {b}\nKs 0.1 0.1 0.1\nNs 32\nd 1\nillum 2"
+        );
+    }
+    std::fs::write(&path, s).map_err(|e| Error::io(&path, "cannot write", e))?;
+    Ok(path)
+}
+
+/// Writes a mesh frame with no UVs (a character) as `dir/<name>_<frame:04>.obj`.
+pub fn write_mesh_frame(
+    dir: &Path,
+    name: &str,
+    frame: u32,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+) -> Result<PathBuf> {
+    let path = dir.join(frame_file_name(name, frame));
+    let mut s = String::with_capacity(positions.len() * 80 + triangles.len() * 40);
+    let _ = writeln!(
+        s,
+        "# drape bake: {name}, frame {frame}\nmtllib {MATERIALS}\no {name}\nusemtl {name}"
+    );
+    for p in positions {
+        let _ = writeln!(s, "v {} {} {}", p.x, p.y, p.z);
+    }
+    for n in vertex_normals(triangles, positions) {
+        let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
+    }
+    for t in triangles {
+        let [a, b, c] = t.map(|i| i + 1);
+        let _ = writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}");
+    }
+    std::fs::write(&path, s).map_err(|e| Error::io(&path, "cannot write", e))?;
+    Ok(path)
+}
+
 /// File name of `garment`'s frame `frame` (1-based).
 pub fn frame_file_name(garment: &str, frame: u32) -> String {
     format!("{garment}_{frame:04}.obj")
@@ -33,7 +78,9 @@ pub fn write_frame(
 pub fn frame_text(garment: &GarmentRange, frame: u32, positions: &[Vec3]) -> String {
     let mut s = String::with_capacity(positions.len() * 96);
     let _ = writeln!(s, "# drape bake: garment {}, frame {frame}", garment.name);
+    let _ = writeln!(s, "mtllib {MATERIALS}");
     let _ = writeln!(s, "o {}", garment.name);
+    let _ = writeln!(s, "usemtl {}", garment.name);
     for p in positions {
         let _ = writeln!(s, "v {} {} {}", p.x, p.y, p.z);
     }

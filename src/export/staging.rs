@@ -47,7 +47,11 @@ impl Staging {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, "cannot create", e))?;
+        // An output folder that cannot be made is a bad --out, like one that is not a bake.
+        std::fs::create_dir_all(&parent).map_err(|e| Error::InvalidArgument {
+            flag: "--out".into(),
+            reason: format!("cannot create {}: {e}", parent.display()),
+        })?;
         let temp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
         if temp.exists() {
             std::fs::remove_dir_all(&temp).map_err(|e| Error::io(&temp, "cannot remove", e))?;

@@ -51,7 +51,19 @@ pub struct Garment {
     pub contact_radius: f32,
     /// Long-range attachments: (particle, pin, rest distance), grid-order indices.
     pub tethers: Vec<Tether>,
+    /// Colour in exports and previews, linear RGB.
+    pub colour: [f32; 3],
 }
+
+/// Garment colours by index when a scene gives none: cloth-like, distinct, not too saturated.
+pub const PALETTE: [[f32; 3]; 6] = [
+    [0.70, 0.18, 0.16],
+    [0.16, 0.36, 0.66],
+    [0.85, 0.62, 0.15],
+    [0.22, 0.52, 0.30],
+    [0.50, 0.28, 0.58],
+    [0.80, 0.80, 0.76],
+];
 
 /// A long-range attachment: `particle` may be no farther than `rest` from pinned particle `pin`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -138,6 +150,7 @@ impl Garment {
             uvs,
             contact_radius: spec.thickness * 0.5,
             tethers: Vec::new(),
+            colour: spec.colour.unwrap_or(PALETTE[0]),
         };
         if spec.hole_radius > 0.0 {
             let size = [spec.size[0], spec.size.get(1).copied().unwrap_or(0.0)];
@@ -224,7 +237,13 @@ pub fn build_all(scene: &crate::scene::Scene) -> Vec<Garment> {
         .garments
         .iter()
         .enumerate()
-        .map(|(i, spec)| Garment::build(scene.garment_name(i), spec))
+        .map(|(i, spec)| {
+            let mut g = Garment::build(scene.garment_name(i), spec);
+            if spec.colour.is_none() {
+                g.colour = PALETTE[i % PALETTE.len()];
+            }
+            g
+        })
         .collect()
 }
 

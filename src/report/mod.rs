@@ -44,6 +44,11 @@ pub struct Report {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residuals: Option<Vec<Vec<f64>>>,
     pub outputs: Outputs,
+    /// Size and time of each export written after the simulation (OBJ frames are written as the
+    /// bake goes and are not listed).
+    pub exports: Vec<ExportReport>,
+    /// The preview render, if one was made.
+    pub preview: Option<crate::render::RenderSummary>,
 }
 
 /// Where the simulation ran.
@@ -154,8 +159,25 @@ pub struct Failure {
 }
 
 /// Files written, relative to the bake folder.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct Outputs {
     /// Folder of the OBJ sequences, if written.
     pub obj: Option<String>,
+    /// The glTF file (`.glb`, or `.gltf` beside its `.bin`), if written.
+    pub gltf: Option<String>,
+    /// Folder of the PC2 caches and rest OBJs, if written.
+    pub pc2: Option<String>,
+    /// The USD layer, if written.
+    pub usd: Option<String>,
+    /// The contact sheet of the preview frames (`preview/frame_0001.png …` beside it), if rendered.
+    pub preview: Option<String>,
+}
+
+/// One export format's cost: files written, their total size and the time to write them.
+#[derive(Clone, Debug, Serialize)]
+pub struct ExportReport {
+    pub format: &'static str,
+    pub files: usize,
+    pub bytes: u64,
+    pub ms: f64,
 }

@@ -194,6 +194,8 @@ pub struct GarmentSpec {
     pub thickness: f32,
     /// Sheets: radius [m] of a round hole cut at the centre (a poncho's head hole). Default 0.
     pub hole_radius: f32,
+    /// Colour in exports and previews, linear RGB in 0…1. Default: one of a palette by index.
+    pub colour: Option<[f32; 3]>,
     /// Long-range attachments (Kim, Chentanez and Müller 2012): every free particle stays within
     /// its rest distance of its two nearest pins, so a pinned cloth cannot stretch away from its
     /// pins however few iterations the solver runs. Default true; no effect without pins.
@@ -215,6 +217,7 @@ impl Default for GarmentSpec {
             initial_stretch: 1.0,
             thickness: 0.005,
             hole_radius: 0.0,
+            colour: None,
             tethers: true,
         }
     }
@@ -359,16 +362,48 @@ impl CharacterSpec {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct OutputSpec {
-    /// Write `obj/<garment>_<frame>.obj`. Default true.
+    /// Write `obj/<garment>_<frame>.obj` (with `obj/materials.mtl`). Default true.
     pub obj: bool,
+    /// Also write the characters' frames into `obj/`. Default false.
+    pub character_obj: bool,
+    /// glTF 2.0 of garments and characters animated over the frames (`docs/formats.md`):
+    /// `"glb"` (one file), `"gltf"` (JSON + .bin) or `"none"`. Default `"glb"`.
+    pub gltf: GltfOutput,
+    /// Write a PC2 point cache and a rest OBJ per garment into `pc2/`. Default false.
+    pub pc2: bool,
+    /// Write a USD layer (`<scene>.usda`) with time-sampled points. Default false.
+    pub usd: bool,
+    /// Render `preview/frame_0001.png …` and `preview/contact_sheet.png` (off-screen, any GPU
+    /// adapter, software ones too). Default false.
+    pub preview: bool,
+    /// Preview size in pixels [width, height]. Default [1280, 720].
+    pub preview_size: [u32; 2],
+    /// Draw the triangles' edges over the preview. Default false.
+    pub wireframe: bool,
     /// Record the total squared error after every solver iteration in the report. Default false.
     pub residuals: bool,
+}
+
+/// glTF container choice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GltfOutput {
+    Glb,
+    Gltf,
+    None,
 }
 
 impl Default for OutputSpec {
     fn default() -> Self {
         OutputSpec {
             obj: true,
+            character_obj: false,
+            gltf: GltfOutput::Glb,
+            pc2: false,
+            usd: false,
+            preview: false,
+            preview_size: [1280, 720],
+            wireframe: false,
             residuals: false,
         }
     }

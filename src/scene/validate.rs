@@ -108,6 +108,13 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     for (i, c) in scene.colliders.iter().enumerate() {
         validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
     }
+    let [w, h] = scene.output.preview_size;
+    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
+        return Err(fail(
+            "output.preview_size".into(),
+            format!("{w}×{h} is outside 1…8192 pixels per side"),
+        ));
+    }
     Ok(())
 }
 
@@ -117,6 +124,11 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
         GarmentKind::Sheet => 2,
         GarmentKind::Rope => 1,
     };
+    if let Some(c) = g.colour {
+        if !c.iter().all(|v| (0.0..=1.0).contains(v)) {
+            return Err(("colour", format!("{c:?}: each channel must lie in 0…1")));
+        }
+    }
     let kind = format!("{:?}", g.kind).to_lowercase();
     if g.resolution.len() != axes {
         return Err((

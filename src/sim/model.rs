@@ -83,6 +83,8 @@ pub struct GarmentRange {
     pub stretch_springs: usize,
     pub shear_springs: usize,
     pub bend_springs: usize,
+    /// Colour in exports and previews, linear RGB.
+    pub colour: [f32; 3],
 }
 
 /// Static simulation data (everything but positions), in storage order.
@@ -137,6 +139,7 @@ impl Model {
                 stretch_springs: g.spring_count(SpringFamily::Stretch),
                 shear_springs: g.spring_count(SpringFamily::Shear),
                 bend_springs: g.spring_count(SpringFamily::Bend),
+                colour: g.colour,
             });
             offset += g.particle_count();
         }

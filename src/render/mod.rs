@@ -1,0 +1,744 @@
+//! Off-screen preview renders with wgpu (no window; lavapipe works): garments, characters and a
+//! floor, Blinn-Phong shading with a shadow-mapped key light and a fill light, both sides of the
+//! cloth lit as themselves, 4 × multisampling, an optional wireframe overlay, and a camera that
+//! frames everything the bake moves through ([`camera`]). Frames become
+//! `preview/frame_0001.png …` and a contact sheet.
+//!
+//! Each frame uploads the meshes' positions and normals, renders the shadow map and then the
+//! image, and reads it back once. Shaders: `shaders/render.wgsl`.
+
+pub mod camera;
+pub mod sheet;
+
+use crate::error::{Error, Result};
+use crate::export::gltf::AnimatedMesh;
+use crate::export::obj::vertex_normals;
+use crate::gpu::GpuContext;
+use camera::View;
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+/// How to render.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderOptions {
+    pub width: u32,
+    pub height: u32,
+    /// Draw every triangle's edges over the shading.
+    pub wireframe: bool,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            width: 1280,
+            height: 720,
+            wireframe: false,
+        }
+    }
+}
+
+/// Per-frame uniforms (`Globals` in render.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Globals {
+    view_proj: [[f32; 4]; 4],
+    light_view_proj: [[f32; 4]; 4],
+    eye: [f32; 4],
+    key: [f32; 4],
+    fill: [f32; 4],
+    shadow: [f32; 4],
+}
+
+/// Per-draw uniforms (`Draw` in render.wgsl), one 256-byte slot each.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DrawUniform {
+    colour: [f32; 4],
+    material: [f32; 4],
+}
+
+const DRAW_SLOT: u64 = 256;
+const SHADOW_SIZE: u32 = 2048;
+const SAMPLES: u32 = 4;
+const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Background: a light grey-blue.
+const CLEAR: wgpu::Color = wgpu::Color {
+    r: 0.62,
+    g: 0.68,
+    b: 0.75,
+    a: 1.0,
+};
+
+/// GPU buffers of one mesh: interleaved position + normal, triangle and edge indices.
+struct MeshBuffers {
+    vertices: wgpu::Buffer,
+    triangles: Option<(wgpu::Buffer, u32)>,
+    edges: Option<(wgpu::Buffer, u32)>,
+    vertex_count: u32,
+}
+
+/// An off-screen renderer for one sequence of meshes.
+pub struct Renderer {
+    ctx: GpuContext,
+    options: RenderOptions,
+    view: View,
+    meshes: Vec<MeshBuffers>,
+    floor: MeshBuffers,
+    shadow_pipeline: wgpu::RenderPipeline,
+    surface_pipeline: wgpu::RenderPipeline,
+    line_list_pipeline: wgpu::RenderPipeline,
+    line_strip_pipeline: wgpu::RenderPipeline,
+    shadow_group: wgpu::BindGroup,
+    main_group: wgpu::BindGroup,
+    draw_group: wgpu::BindGroup,
+    shadow_view: wgpu::TextureView,
+    msaa_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    resolved: wgpu::Texture,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+}
+
+/// The bounding box of every vertex of every frame.
+pub fn bounds(meshes: &[AnimatedMesh]) -> Option<(Vec3, Vec3)> {
+    let mut all = meshes
+        .iter()
+        .flat_map(|m| m.frames.iter().flatten())
+        .peekable();
+    all.peek()?;
+    Some(all.fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    ))
+}
+
+/// Unique edges of `triangles` as line-list indices.
+fn edges(triangles: &[[u32; 3]]) -> Vec<u32> {
+    let mut e: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    e.sort_unstable();
+    e.dedup();
+    e.into_iter().flat_map(|(a, b)| [a, b]).collect()
+}
+
+/// Interleaved position + normal of a frame.
+fn interleave(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<[f32; 6]> {
+    let normals = if triangles.is_empty() {
+        vec![Vec3::Y; positions.len()]
+    } else {
+        vertex_normals(triangles, positions)
+    };
+    positions
+        .iter()
+        .zip(&normals)
+        .map(|(p, n)| [p.x, p.y, p.z, n.x, n.y, n.z])
+        .collect()
+}
+
+impl Renderer {
+    /// Prepares buffers, pipelines and the camera for `meshes` (every frame is used for framing).
+    pub fn new(
+        ctx: GpuContext,
+        meshes: &[AnimatedMesh],
+        options: RenderOptions,
+    ) -> Result<Renderer> {
+        let drawable = meshes
+            .iter()
+            .any(|m| m.frames.first().is_some_and(|f| !f.is_empty()));
+        let (lo, hi) =
+            bounds(meshes)
+                .filter(|_| drawable)
+                .ok_or_else(|| Error::InvalidArgument {
+                    flag: "render".into(),
+                    reason: "nothing to render: the bake has no garment or character vertices"
+                        .into(),
+                })?;
+        if options.width == 0
+            || options.height == 0
+            || options.width > 8192
+            || options.height > 8192
+        {
+            return Err(Error::InvalidArgument {
+                flag: "--size".into(),
+                reason: format!(
+                    "{}×{} is outside 1…8192 pixels per side",
+                    options.width, options.height
+                ),
+            });
+        }
+        let view = View::framing(lo, hi, options.width as f32 / options.height as f32);
+        let device = &ctx.device;
+        use wgpu::util::DeviceExt;
+        let buffer = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage,
+            })
+        };
+        let vertex_usage = wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST;
+        let mesh_buffers = |m: &AnimatedMesh| MeshBuffers {
+            vertices: buffer(
+                &m.name,
+                bytemuck::cast_slice(&interleave(&m.frames[0], &m.triangles)),
+                vertex_usage,
+            ),
+            triangles: (!m.triangles.is_empty()).then(|| {
+                (
+                    buffer(
+                        "triangles",
+                        bytemuck::cast_slice(&m.triangles),
+                        wgpu::BufferUsages::INDEX,
+                    ),
+                    m.triangles.len() as u32 * 3,
+                )
+            }),
+            edges: (options.wireframe && !m.triangles.is_empty()).then(|| {
+                let e = edges(&m.triangles);
+                (
+                    buffer("edges", bytemuck::cast_slice(&e), wgpu::BufferUsages::INDEX),
+                    e.len() as u32,
+                )
+            }),
+            vertex_count: m.frames[0].len() as u32,
+        };
+        let gpu_meshes: Vec<MeshBuffers> = meshes.iter().map(mesh_buffers).collect();
+        let (c, h) = (view.floor_centre, view.floor_half);
+        let floor_mesh = AnimatedMesh {
+            name: "floor".into(),
+            triangles: vec![[0, 2, 1], [0, 3, 2]],
+            uvs: None,
+            colour: [0.8, 0.8, 0.78, 1.0],
+            frames: vec![vec![
+                c + Vec3::new(-h, 0.0, -h),
+                c + Vec3::new(h, 0.0, -h),
+                c + Vec3::new(h, 0.0, h),
+                c + Vec3::new(-h, 0.0, h),
+            ]],
+        };
+        let floor = mesh_buffers(&floor_mesh);
+        // Draw slots: one per mesh, then the floor, then the wireframe colour (the bind groups
+        // keep these buffers alive).
+        let mut slots = vec![0u8; DRAW_SLOT as usize * (meshes.len() + 2)];
+        let mut put = |slot: usize, colour: [f32; 4], material: [f32; 4]| {
+            let u = DrawUniform { colour, material };
+            let at = slot * DRAW_SLOT as usize;
+            slots[at..at + std::mem::size_of::<DrawUniform>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+        };
+        for (i, m) in meshes.iter().enumerate() {
+            put(i, m.colour, [0.25, 32.0, 0.0, 0.0]);
+        }
+        put(meshes.len(), floor_mesh.colour, [0.05, 8.0, 0.0, 0.0]);
+        put(meshes.len() + 1, [0.05, 0.05, 0.08, 1.0], [0.0; 4]);
+        let draws = buffer("draws", &slots, wgpu::BufferUsages::UNIFORM);
+        let globals_value = Globals {
+            view_proj: view.view_proj.to_cols_array_2d(),
+            light_view_proj: view.light_view_proj.to_cols_array_2d(),
+            eye: view.eye.extend(1.0).to_array(),
+            key: view.key.extend(0.85).to_array(),
+            fill: view.fill.extend(0.35).to_array(),
+            shadow: [1.0 / SHADOW_SIZE as f32, 0.22, 0.0015, 0.0],
+        };
+        let globals = buffer(
+            "globals",
+            bytemuck::bytes_of(&globals_value),
+            wgpu::BufferUsages::UNIFORM,
+        );
+
+        let texture = |label: &str, size: (u32, u32), format, samples, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size.0,
+                    height: size.1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let size = (options.width, options.height);
+        let shadow = texture(
+            "shadow map",
+            (SHADOW_SIZE, SHADOW_SIZE),
+            DEPTH_FORMAT,
+            1,
+            attach | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let msaa = texture("colour", size, COLOUR_FORMAT, SAMPLES, attach);
+        let depth = texture("depth", size, DEPTH_FORMAT, SAMPLES, attach);
+        let resolved = texture(
+            "image",
+            size,
+            COLOUR_FORMAT,
+            1,
+            attach | wgpu::TextureUsages::COPY_SRC,
+        );
+        let padded_row = (options.width * 4).div_ceil(256) * 256;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image readback"),
+            size: padded_row as u64 * options.height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let shadow_view = shadow.create_view(&Default::default());
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("shadow sampler"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            compare: Some(wgpu::CompareFunction::LessEqual),
+            ..Default::default()
+        });
+
+        let uniform_entry = |binding, dynamic: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let globals_only = layout("globals", &[uniform_entry(0, false)]);
+        let lit = layout(
+            "globals and shadow map",
+            &[
+                uniform_entry(0, false),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                    count: None,
+                },
+            ],
+        );
+        let per_draw = layout("draw", &[uniform_entry(0, true)]);
+        let group = |layout: &wgpu::BindGroupLayout, entries: &[wgpu::BindGroupEntry]| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout,
+                entries,
+            })
+        };
+        let shadow_group = group(
+            &globals_only,
+            &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
+        );
+        let main_group = group(
+            &lit,
+            &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&shadow_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+            ],
+        );
+        let draw_group = group(
+            &per_draw,
+            &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &draws,
+                    offset: 0,
+                    size: std::num::NonZeroU64::new(std::mem::size_of::<DrawUniform>() as u64),
+                }),
+            }],
+        );
+
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("render.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/render.wgsl").into()),
+        });
+        let pipeline_layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: None,
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            })
+        };
+        let shadow_layout = pipeline_layout(&[Some(&globals_only)]);
+        let main_layout = pipeline_layout(&[Some(&lit), Some(&per_draw)]);
+        let vertex_layout = [Some(wgpu::VertexBufferLayout {
+            array_stride: 24,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+        })];
+        let pipeline = |label: &str,
+                        layout: &wgpu::PipelineLayout,
+                        vs: &str,
+                        fs: Option<&str>,
+                        topology: wgpu::PrimitiveTopology,
+                        samples: u32,
+                        bias: wgpu::DepthBiasState| {
+            let targets = [Some(wgpu::ColorTargetState {
+                format: COLOUR_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })];
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers: &vertex_layout,
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                    stencil: Default::default(),
+                    bias,
+                }),
+                multisample: wgpu::MultisampleState {
+                    count: samples,
+                    ..Default::default()
+                },
+                fragment: fs.map(|entry| wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets: &targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let no_bias = wgpu::DepthBiasState::default();
+        let shadow_pipeline = pipeline(
+            "shadow",
+            &shadow_layout,
+            "vs_shadow",
+            None,
+            wgpu::PrimitiveTopology::TriangleList,
+            1,
+            wgpu::DepthBiasState {
+                constant: 2,
+                slope_scale: 2.0,
+                clamp: 0.0,
+            },
+        );
+        let surface_pipeline = pipeline(
+            "surface",
+            &main_layout,
+            "vs_main",
+            Some("fs_main"),
+            wgpu::PrimitiveTopology::TriangleList,
+            SAMPLES,
+            no_bias,
+        );
+        let line_list_pipeline = pipeline(
+            "wireframe",
+            &main_layout,
+            "vs_line",
+            Some("fs_line"),
+            wgpu::PrimitiveTopology::LineList,
+            SAMPLES,
+            no_bias,
+        );
+        let line_strip_pipeline = pipeline(
+            "ropes",
+            &main_layout,
+            "vs_line",
+            Some("fs_line"),
+            wgpu::PrimitiveTopology::LineStrip,
+            SAMPLES,
+            no_bias,
+        );
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(Error::Gpu {
+                reason: format!("{}: preview pipelines: {e}", ctx.adapter.name),
+            });
+        }
+        Ok(Renderer {
+            options,
+            view,
+            meshes: gpu_meshes,
+            floor,
+            shadow_pipeline,
+            surface_pipeline,
+            line_list_pipeline,
+            line_strip_pipeline,
+            shadow_group,
+            main_group,
+            draw_group,
+            shadow_view,
+            msaa_view: msaa.create_view(&Default::default()),
+            depth_view: depth.create_view(&Default::default()),
+            resolved,
+            readback,
+            padded_row,
+            ctx,
+        })
+    }
+
+    /// The camera and lights.
+    pub fn view(&self) -> &View {
+        &self.view
+    }
+
+    /// Renders frame `k` of `meshes` (the meshes the renderer was built for) to an RGBA image.
+    pub fn render(&mut self, meshes: &[AnimatedMesh], k: usize) -> Result<image::RgbaImage> {
+        let queue = &self.ctx.queue;
+        for (m, gpu) in meshes.iter().zip(&self.meshes) {
+            let frame = &m.frames[k.min(m.frames.len() - 1)];
+            queue.write_buffer(
+                &gpu.vertices,
+                0,
+                bytemuck::cast_slice(&interleave(frame, &m.triangles)),
+            );
+        }
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("preview frame"),
+            });
+        let all: Vec<(usize, &MeshBuffers)> = self
+            .meshes
+            .iter()
+            .enumerate()
+            .chain(std::iter::once((self.meshes.len(), &self.floor)))
+            .collect();
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("shadow"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.shadow_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.shadow_pipeline);
+            pass.set_bind_group(0, &self.shadow_group, &[]);
+            for (_, m) in &all {
+                if let Some((indices, count)) = &m.triangles {
+                    pass.set_vertex_buffer(0, m.vertices.slice(..));
+                    pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..*count, 0, 0..1);
+                }
+            }
+        }
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("image"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.msaa_view,
+                    depth_slice: None,
+                    resolve_target: Some(&self.resolved.create_view(&Default::default())),
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(CLEAR),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_bind_group(0, &self.main_group, &[]);
+            let slot = |i: usize| [(i as u64 * DRAW_SLOT) as u32];
+            for (i, m) in &all {
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                match &m.triangles {
+                    Some((indices, count)) => {
+                        pass.set_pipeline(&self.surface_pipeline);
+                        pass.set_bind_group(1, &self.draw_group, &slot(*i));
+                        pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                        pass.draw_indexed(0..*count, 0, 0..1);
+                    }
+                    None => {
+                        pass.set_pipeline(&self.line_strip_pipeline);
+                        pass.set_bind_group(1, &self.draw_group, &slot(*i));
+                        pass.draw(0..m.vertex_count, 0..1);
+                    }
+                }
+                if let Some((edges, count)) = &m.edges {
+                    pass.set_pipeline(&self.line_list_pipeline);
+                    pass.set_bind_group(1, &self.draw_group, &slot(self.meshes.len() + 1));
+                    pass.set_index_buffer(edges.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..*count, 0, 0..1);
+                }
+            }
+        }
+        let (w, h) = (self.options.width, self.options.height);
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.resolved,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+        let gpu_error = |e: &dyn std::fmt::Display| Error::Gpu {
+            reason: format!("{}: preview: {e}", self.ctx.adapter.name),
+        };
+        let scope = self
+            .ctx
+            .device
+            .push_error_scope(wgpu::ErrorFilter::Validation);
+        queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(gpu_error(&e));
+        }
+        let slice = self.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| gpu_error(&e))?;
+        let mut pixels = Vec::with_capacity((w * h * 4) as usize);
+        {
+            let data = slice
+                .get_mapped_range()
+                .map_err(|e| gpu_error(&format!("{e:?}")))?;
+            for row in data.chunks(self.padded_row as usize).take(h as usize) {
+                pixels.extend_from_slice(&row[..(w * 4) as usize]);
+            }
+        }
+        self.readback.unmap();
+        let image = image::RgbaImage::from_raw(w, h, pixels).expect("width × height × 4 bytes");
+        // A render that came out as one flat colour drew nothing: say so instead of saving it.
+        let first = *image.get_pixel(0, 0);
+        if image.pixels().all(|p| *p == first) {
+            return Err(Error::Gpu {
+                reason: format!(
+                    "{}: preview frame {} came out as one flat colour",
+                    self.ctx.adapter.name,
+                    k + 1
+                ),
+            });
+        }
+        Ok(image)
+    }
+}
+
+/// What [`render_sequence`] did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderSummary {
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    pub adapter: String,
+    /// Wall time per frame, render and PNG encoding [ms].
+    pub ms_per_frame: f64,
+    /// `preview/…` files, relative to the folder rendered into.
+    pub contact_sheet: String,
+}
+
+/// Renders every frame of `meshes` into `dir/preview/frame_0001.png …` plus
+/// `dir/preview/contact_sheet.png`.
+pub fn render_sequence(
+    ctx: GpuContext,
+    meshes: &[AnimatedMesh],
+    options: RenderOptions,
+    dir: &Path,
+) -> Result<RenderSummary> {
+    let adapter = ctx.describe();
+    let mut renderer = Renderer::new(ctx, meshes, options)?;
+    let preview = dir.join("preview");
+    std::fs::create_dir_all(&preview).map_err(|e| Error::io(&preview, "cannot create", e))?;
+    let frames = meshes.iter().map(|m| m.frames.len()).max().unwrap_or(0);
+    let picks = sheet::picks(frames, sheet::THUMBNAILS);
+    let mut thumbnails = Vec::new();
+    let start = std::time::Instant::now();
+    for k in 0..frames {
+        let image = renderer.render(meshes, k)?;
+        let path = preview.join(format!("frame_{:04}.png", k + 1));
+        save_png(&image, &path)?;
+        if picks.contains(&k) {
+            thumbnails.push((k + 1, sheet::thumbnail(&image)));
+        }
+    }
+    let ms = start.elapsed().as_secs_f64() * 1e3 / frames.max(1) as f64;
+    let sheet_path = preview.join("contact_sheet.png");
+    save_png(&sheet::compose(&thumbnails), &sheet_path)?;
+    Ok(RenderSummary {
+        frames,
+        width: options.width,
+        height: options.height,
+        adapter,
+        ms_per_frame: ms,
+        contact_sheet: "preview/contact_sheet.png".into(),
+    })
+}
+
+/// Saves an RGBA image as PNG.
+pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<PathBuf> {
+    image
+        .save_with_format(path, image::ImageFormat::Png)
+        .map_err(|e| Error::io(path, "cannot write", std::io::Error::other(e.to_string())))?;
+    Ok(path.to_path_buf())
+}

@@ -1,0 +1,300 @@
+//! Baked exports read back by readers drape did not write: the `gltf` crate for glTF (frame k of
+//! the morph-target animation equals OBJ frame k), a PC2 reader written here from
+//! the format's spec, the USD text's time samples, and the Khronos glTF validator when `.ci/deps`
+//! installed it. Bad output folders fail clearly and leave nothing behind.
+
+mod common;
+
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+/// A hanging sheet and a rope, 6 frames, every export on.
+const SCENE: &str = r#"{
+  "name": "exports", "frames": 6, "substeps": 10, "backend": "cpu",
+  "garments": [
+    { "name": "sheet", "resolution": [12, 10], "size": [1, 0.8], "pins": [[0, 0], [-1, 0]],
+      "colour": [0.2, 0.4, 0.7] },
+    { "name": "rope", "kind": "rope", "resolution": [9], "size": [0.8], "position": [0, 1.5, 0.5],
+      "pins": [[0]] }
+  ],
+  "output": { "pc2": true, "usd": true }
+}"#;
+
+/// Bakes SCENE into `dir/out` with extra arguments and returns the folder.
+fn bake(dir: &Path, extra: &[&str]) -> PathBuf {
+    common::write(dir, "scene.json", SCENE);
+    let mut args = vec!["bake", "scene.json", "--out", "out"];
+    args.extend_from_slice(extra);
+    let out = common::drape(dir, &args);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    dir.join("out")
+}
+
+/// The `v` lines of an OBJ file in file order (grid order, as drape writes them; tobj renumbers
+/// vertices in face order, and `tests/export_roundtrip.rs` checks OBJ frames with it face by face).
+fn obj_positions(path: &Path) -> Vec<Vec3> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            Vec3::new(v[0], v[1], v[2])
+        })
+        .collect()
+}
+
+/// Every frame of every mesh of a glTF, read with the `gltf` crate: base + morph target k − 1.
+fn gltf_frames(path: &Path) -> Vec<(String, Vec<Vec<Vec3>>)> {
+    let (doc, buffers, _) = gltf::import(path).expect("the gltf crate imports it");
+    doc.nodes()
+        .filter_map(|node| {
+            let mesh = node.mesh()?;
+            let primitive = mesh.primitives().next()?;
+            let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+            let base: Vec<Vec3> = reader.read_positions()?.map(Vec3::from).collect();
+            let mut frames = vec![base.clone()];
+            for (positions, _, _) in reader.read_morph_targets() {
+                let delta = positions.expect("positions");
+                frames.push(
+                    base.iter()
+                        .zip(delta)
+                        .map(|(b, d)| *b + Vec3::from(d))
+                        .collect(),
+                );
+            }
+            Some((node.name().unwrap_or("").to_string(), frames))
+        })
+        .collect()
+}
+
+#[test]
+fn gltf_frames_equal_obj_frames_and_the_animation_plays_them_in_order() {
+    let dir = common::temp_dir();
+    let out = bake(dir.path(), &[]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["outputs"]["gltf"], "exports.glb");
+    let meshes = gltf_frames(&out.join("exports.glb"));
+    assert_eq!(meshes.len(), 2);
+    for (name, frames) in &meshes {
+        assert_eq!(frames.len(), 6, "{name}");
+        for (k, frame) in frames.iter().enumerate() {
+            let obj = obj_positions(&out.join(format!("obj/{name}_{:04}.obj", k + 1)));
+            let worst = frame
+                .iter()
+                .zip(&obj)
+                .map(|(a, b)| a.distance(*b))
+                .fold(0.0, f32::max);
+            // Base + (frame − base) in f32: at most a rounding of the delta apart.
+            assert!(
+                worst <= 1e-6,
+                "{name} frame {}: {worst} m from the OBJ",
+                k + 1
+            );
+        }
+    }
+    // The weights animation: key j at j/60 s gives target j − 1 the whole weight.
+    let (doc, buffers, _) = gltf::import(out.join("exports.glb")).unwrap();
+    let animation = doc.animations().next().expect("an animation");
+    for channel in animation.channels() {
+        let reader = channel.reader(|b| Some(&buffers[b.index()]));
+        let times: Vec<f32> = reader.read_inputs().unwrap().collect();
+        assert_eq!(times.len(), 6);
+        for (j, t) in times.iter().enumerate() {
+            assert!((t - j as f32 / 60.0).abs() < 1e-6);
+        }
+        let Some(gltf::animation::util::ReadOutputs::MorphTargetWeights(w)) = reader.read_outputs()
+        else {
+            panic!("weights")
+        };
+        let w: Vec<f32> = w.into_f32().collect();
+        let targets = 5;
+        for j in 0..6 {
+            for t in 0..targets {
+                let expected = if j > 0 && t == j - 1 { 1.0 } else { 0.0 };
+                assert_eq!(w[j * targets + t], expected, "key {j} target {t}");
+            }
+        }
+    }
+    // Materials: the sheet's colour and an OBJ material library.
+    let sheet = doc.materials().find(|m| m.name() == Some("sheet")).unwrap();
+    assert_eq!(
+        &sheet.pbr_metallic_roughness().base_color_factor()[..3],
+        &[0.2, 0.4, 0.7]
+    );
+    let (_, materials) = tobj::load_obj(
+        out.join("obj/sheet_0001.obj"),
+        &tobj::LoadOptions::default(),
+    )
+    .unwrap();
+    let materials = materials.expect("materials.mtl is read");
+    assert_eq!(materials[0].diffuse, Some([0.2, 0.4, 0.7]));
+}
+
+#[test]
+fn gltf_with_a_separate_buffer_reads_the_same() {
+    let dir = common::temp_dir();
+    let out = bake(dir.path(), &["--gltf", "gltf"]);
+    assert!(out.join("exports.bin").is_file());
+    let meshes = gltf_frames(&out.join("exports.gltf"));
+    assert_eq!(meshes.len(), 2);
+    assert_eq!(meshes[0].1.len(), 6);
+}
+
+/// PC2 from its spec: 12-byte signature, version, points, start frame, sample rate, samples,
+/// then samples × points × 3 little-endian f32.
+fn read_pc2(path: &Path) -> (i32, f32, f32, Vec<Vec<Vec3>>) {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..12], b"POINTCACHE2\0");
+    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let (version, points, start, rate, samples) =
+        (i32_at(12), i32_at(16), f32_at(20), f32_at(24), i32_at(28));
+    assert_eq!(bytes.len(), 32 + (points * samples * 12) as usize);
+    let frames = (0..samples as usize)
+        .map(|s| {
+            (0..points as usize)
+                .map(|p| {
+                    let o = 32 + (s * points as usize + p) * 12;
+                    Vec3::new(f32_at(o), f32_at(o + 4), f32_at(o + 8))
+                })
+                .collect()
+        })
+        .collect();
+    (version, start, rate, frames)
+}
+
+#[test]
+fn pc2_caches_hold_every_frame_in_the_rest_mesh_order() {
+    let dir = common::temp_dir();
+    let out = bake(dir.path(), &[]);
+    for name in ["sheet", "rope"] {
+        let (version, start, rate, frames) = read_pc2(&out.join(format!("pc2/{name}.pc2")));
+        assert_eq!((version, start, rate, frames.len()), (1, 1.0, 1.0, 6));
+        for (k, frame) in frames.iter().enumerate() {
+            let obj = obj_positions(&out.join(format!("obj/{name}_{:04}.obj", k + 1)));
+            assert_eq!(frame, &obj, "{name} frame {}", k + 1);
+        }
+        let rest = obj_positions(&out.join(format!("pc2/{name}_rest.obj")));
+        assert_eq!(rest.len(), frames[0].len());
+    }
+}
+
+#[test]
+fn usd_layer_has_units_axis_and_a_time_sample_per_frame() {
+    let dir = common::temp_dir();
+    let out = bake(dir.path(), &[]);
+    let text = std::fs::read_to_string(out.join("exports.usda")).unwrap();
+    assert!(text.starts_with("#usda 1.0"));
+    for line in [
+        "metersPerUnit = 1",
+        "upAxis = \"Y\"",
+        "startTimeCode = 1",
+        "endTimeCode = 6",
+        "timeCodesPerSecond = 60",
+    ] {
+        assert!(text.contains(line), "missing {line}");
+    }
+    assert!(text.contains("def Mesh \"sheet\"") && text.contains("def BasisCurves \"rope\""));
+    // Frame 3 of the sheet: the first point equals OBJ frame 3's first vertex.
+    let sheet = &text[text.find("def Mesh \"sheet\"").unwrap()..];
+    let samples = &sheet[sheet.find("points.timeSamples").unwrap()..];
+    let line = samples
+        .lines()
+        .find(|l| l.trim_start().starts_with("3: ["))
+        .expect("sample 3");
+    let first: Vec<f32> = line[line.find("[(").unwrap() + 2..]
+        .split(')')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let obj = obj_positions(&out.join("obj/sheet_0003.obj"));
+    assert_eq!(Vec3::new(first[0], first[1], first[2]), obj[0]);
+    assert_eq!(
+        samples
+            .lines()
+            .take_while(|l| !l.trim().starts_with('}'))
+            .filter(|l| l.contains(": ["))
+            .count(),
+        6
+    );
+}
+
+/// The validator `.ci/deps` installs (npm `gltf-validator`), if it is there.
+fn validator() -> Option<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let module = root.join("target/gltf-validator/node_modules/gltf-validator");
+    module
+        .is_dir()
+        .then(|| root.join("tests/validate_gltf.mjs"))
+}
+
+#[test]
+fn the_khronos_validator_finds_no_errors() {
+    let Some(script) = validator() else {
+        eprintln!("skipped: run .ci/deps to install the Khronos glTF validator");
+        return;
+    };
+    let dir = common::temp_dir();
+    let sheet_and_rope = bake(dir.path(), &[]).join("exports.glb");
+    // A second scene: a cloth on the mannequin, with the character in the file.
+    let body = Path::new(env!("CARGO_MANIFEST_DIR")).join("characters/mannequin/raise_arms");
+    let text = format!(
+        r#"{{ "name": "mannequin", "frames": 4, "backend": "cpu",
+              "garments": [{{ "name": "cloth", "resolution": [16, 16], "size": [1.2, 1.2], "position": [0, 1.9, 0] }}],
+              "characters": [{{ "name": "body", "file": {:?}, "sequence_fps": 12 }}] }}"#,
+        body.display().to_string()
+    );
+    common::write(dir.path(), "mannequin.json", &text);
+    let out = common::drape(
+        dir.path(),
+        &["bake", "mannequin.json", "--out", "m", "--gltf", "gltf"],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let with_body = dir.path().join("m/mannequin.gltf");
+    assert_eq!(gltf_frames(&with_body).len(), 2, "cloth and body");
+    for file in [sheet_and_rope, with_body] {
+        let run = std::process::Command::new("node")
+            .arg(&script)
+            .arg(&file)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("node runs");
+        let text = String::from_utf8_lossy(&run.stdout);
+        assert!(
+            run.status.success(),
+            "{}: {text}{}",
+            file.display(),
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let result: serde_json::Value = serde_json::from_str(&text).expect("validator JSON");
+        assert_eq!(
+            result["issues"]["numErrors"],
+            0,
+            "{}: {text}",
+            file.display()
+        );
+    }
+}
+
+#[test]
+fn an_output_folder_that_cannot_be_made_fails_clearly_and_leaves_nothing() {
+    let dir = common::temp_dir();
+    common::write(dir.path(), "scene.json", SCENE);
+    common::write(dir.path(), "a_file", "not a folder");
+    let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "a_file/bake"]);
+    assert_eq!(out.status.code(), Some(2), "{}", common::stderr(&out));
+    assert!(
+        common::stderr(&out).contains("--out"),
+        "{}",
+        common::stderr(&out)
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 2, "{left:?}");
+}
