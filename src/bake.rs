@@ -372,9 +372,19 @@ fn run(
                 height: out.preview_size[1],
                 wireframe: out.wireframe,
             };
-            let summary = render_sequence(GpuContext::new(false)?, &meshes, options, dir)?;
-            report.outputs.preview = Some(summary.contact_sheet.clone());
-            report.preview = Some(summary);
+            // A preview that cannot be made (no adapter at all) costs the bake nothing else: the
+            // frames and exports stay, and the report says why there are no images.
+            match GpuContext::new(false).and_then(|ctx| render_sequence(ctx, &meshes, options, dir))
+            {
+                Ok(summary) => {
+                    report.outputs.preview = Some(summary.contact_sheet.clone());
+                    report.preview = Some(summary);
+                }
+                Err(e) => {
+                    let _ = std::fs::remove_dir_all(dir.join("preview"));
+                    report.warnings.push(format!("preview not rendered: {e}"));
+                }
+            }
         }
     }
     Ok((report, sim.export_positions()))
