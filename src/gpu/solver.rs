@@ -66,6 +66,11 @@ impl GpuSimulation {
                         .into(),
             });
         }
+        if sim.particle_collisions.is_some() {
+            return Err(Error::Gpu {
+                reason: "particle collisions are simulated on the CPU backend only so far".into(),
+            });
+        }
         let device = &ctx.device;
         let model = sim.model();
         let n = model.particle_count();

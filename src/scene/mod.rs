@@ -47,6 +47,12 @@ pub struct Scene {
     pub colliders: Vec<ColliderSpec>,
     /// Animated characters the garments collide with, through their particle shells. Default none.
     pub characters: Vec<CharacterSpec>,
+    /// Particle–particle collisions: a garment against itself and against other garments (CPU
+    /// backend only so far). Default false.
+    pub particle_collisions: bool,
+    /// Radius of a garment particle in those collisions [m]; particles keep twice this apart.
+    /// Default: half the smallest rest spacing of any garment.
+    pub particle_radius: Option<f32>,
     /// Folder that relative paths in the scene are resolved against (the scene file's folder;
     /// the working folder for the embedded scene). Not a scene field.
     #[serde(skip)]
@@ -84,6 +90,8 @@ impl Default for Scene {
             garments: Vec::new(),
             colliders: Vec::new(),
             characters: Vec::new(),
+            particle_collisions: false,
+            particle_radius: None,
             base_dir: std::path::PathBuf::from("."),
             output: OutputSpec::default(),
             backend: BackendKind::Auto,

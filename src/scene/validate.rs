@@ -108,6 +108,9 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     for (i, c) in scene.colliders.iter().enumerate() {
         validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
     }
+    if let Some(r) = scene.particle_radius {
+        positive(r).map_err(|r| fail("particle_radius".into(), r))?;
+    }
     let [w, h] = scene.output.preview_size;
     if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
         return Err(fail(

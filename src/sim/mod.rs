@@ -11,6 +11,7 @@ pub mod solver;
 pub mod state;
 pub mod team;
 
+use crate::collide::particles::{Grid, ParticleCollisions};
 use crate::collide::{Collider, ShellCollider};
 use crate::garment::Garment;
 use crate::scene::{IntegratorKind, Scene, SolverSettings};
@@ -19,7 +20,7 @@ use integrate::Verlet;
 pub use model::Model;
 pub use solver::Solver;
 pub use state::State;
-use std::sync::Mutex;
+use std::sync::{Mutex, RwLock};
 use team::{Member, Shared};
 
 /// A running simulation of one scene's garments.
@@ -49,6 +50,12 @@ pub struct Simulation {
     pub gravity: Vec3,
     /// When set, the total squared error after every sweep of the current frame.
     pub residuals: Option<Vec<f64>>,
+    /// Particle–particle collisions (self and between garments), when the scene asks for them.
+    pub particle_collisions: Option<ParticleCollisions>,
+    /// Their hash grid, rebuilt every substep.
+    grid: RwLock<Grid>,
+    /// Each particle's push out of the others in the current substep.
+    pushes: Vec<Vec4>,
 }
 
 impl Simulation {
@@ -77,7 +84,30 @@ impl Simulation {
         let gravity = Vec3::from(scene.gravity);
         let integrating = scene.integrator == IntegratorKind::Verlet;
         let solver = Solver::new(&model, solver, integrating.then_some(step));
+        let particle_collisions = scene.particle_collisions.then(|| {
+            let radius = scene
+                .particle_radius
+                .unwrap_or_else(|| ParticleCollisions::default_radius(garments));
+            ParticleCollisions::new(&model, garments, radius)
+        });
+        let grid = RwLock::new(
+            particle_collisions
+                .as_ref()
+                .map(|p| p.grid())
+                .unwrap_or_default(),
+        );
+        let pushes = vec![
+            Vec4::ZERO;
+            if particle_collisions.is_some() {
+                model.particle_count()
+            } else {
+                0
+            }
+        ];
         Simulation {
+            particle_collisions,
+            grid,
+            pushes,
             target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
@@ -140,6 +170,7 @@ impl Simulation {
             scratch: Shared::new(&mut self.scratch),
         };
         let velocities = Shared::new(&mut self.state.velocities);
+        let pushes = Shared::new(&mut self.pushes);
         let model = &self.model;
         let recording = self.residuals.is_some();
         let residuals = Mutex::new(self.residuals.as_mut());
@@ -166,8 +197,11 @@ impl Simulation {
             shells: &self.shells,
             b: buffers,
             velocities,
+            pushes: self.particle_collisions.is_some().then_some(pushes),
         };
         let solver = &self.solver;
+        let particles = self.particle_collisions.as_ref();
+        let grid = &self.grid;
         team::run(|m| {
             // 1. Predict the first substep; later predictions are fused into step 5.
             stages.predict(m);
@@ -175,7 +209,25 @@ impl Simulation {
             for k in 0..count {
                 // 2. Solve the constraints (every solver stage ends with a sync).
                 solver.solve(m, model, &buffers, &observe);
-                // 3. Tethers, 4. collisions, 5. commit and predict the next substep: one pass,
+                // 3a. Particle–particle collisions: one thread sorts the predicted positions into
+                // the grid, then every thread computes its particles' pushes.
+                if let Some(pc) = particles {
+                    // SAFETY: between two syncs nobody writes x or Δ.
+                    let (x, d) = unsafe { (buffers.x.read_all(), buffers.delta.read_all()) };
+                    let q = |i: usize| x[i] + d[i];
+                    if m.leads() {
+                        pc.build(q, &mut grid.write().expect("not poisoned"));
+                    }
+                    m.sync();
+                    let g = grid.read().expect("not poisoned");
+                    for i in m.particles(&model.colour_ranges) {
+                        // SAFETY: each particle's push is written by its own thread only.
+                        unsafe { pushes.set(i, pc.push_out(i, q, &model.inv_mass, &g)) };
+                    }
+                    drop(g);
+                    m.sync();
+                }
+                // 3b. Tethers, 4. collisions, 5. commit and predict the next substep: one pass,
                 // each particle alone.
                 stages.finish(m, k + 1 < count);
                 m.sync();
@@ -235,6 +287,8 @@ struct Stages<'a> {
     shells: &'a [ShellCollider],
     b: solver::Buffers,
     velocities: Shared<Vec4>,
+    /// Particle–particle pushes of this substep, when those collisions are on.
+    pushes: Option<Shared<Vec4>>,
 }
 
 impl Stages<'_> {
@@ -274,6 +328,9 @@ impl Stages<'_> {
             unsafe {
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
+                if let Some(p) = &self.pushes {
+                    d += p.get(i);
+                }
                 let tethers = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
                 for t in &model.tethers[tethers] {
                     let p = t.pin as usize;

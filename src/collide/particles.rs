@@ -1,0 +1,184 @@
+//! Particle–particle collisions (CPU): self-collision of a garment and garment–garment contact.
+//!
+//! Every substep, after the solver, the predicted positions q = x + Δ are sorted into a uniform
+//! hash grid whose cells are one particle diameter wide (a counting sort, so building costs two
+//! passes over the particles), and each particle is pushed out of every other particle closer
+//! than one diameter: a Jacobi pass, each particle moving by its share of the overlap (by inverse
+//! mass, so pinned particles stay), all corrections computed from the same q, so the result does
+//! not depend on the order or the thread count. Pairs of one garment within two lattice steps of
+//! each other are skipped: springs hold them, and at rest they already touch.
+
+use crate::garment::Garment;
+use crate::sim::model::Model;
+use glam::Vec4;
+
+/// Static data of particle–particle collisions, in the model's storage order.
+#[derive(Clone, Debug)]
+pub struct ParticleCollisions {
+    /// Particle radius [m]: particles keep 2 × radius apart.
+    pub radius: f32,
+    /// Garment index of each particle.
+    garment: Vec<u32>,
+    /// Lattice cell of each particle.
+    cell: Vec<[i32; 3]>,
+    /// Hash table size (a power of two).
+    table: usize,
+}
+
+/// The hash grid of one substep.
+#[derive(Clone, Debug, Default)]
+pub struct Grid {
+    /// Start of each bucket in `items`; length = table + 1.
+    pub start: Vec<u32>,
+    /// Particles sorted by bucket.
+    pub items: Vec<u32>,
+    /// Bucket of each particle.
+    pub bucket: Vec<u32>,
+}
+
+/// Lattice steps within which two particles of one garment never collide.
+const SKIP_STEPS: i32 = 2;
+
+impl ParticleCollisions {
+    /// Collisions between every particle of `model` (built from `garments`) at `radius`.
+    pub fn new(model: &Model, garments: &[Garment], radius: f32) -> ParticleCollisions {
+        let n = model.particle_count();
+        let mut garment = vec![0u32; n];
+        let mut cell = vec![[0i32; 3]; n];
+        for (g, (spec, range)) in garments.iter().zip(&model.garments).enumerate() {
+            for (k, c) in spec.cells.iter().enumerate() {
+                let s = model.storage_of[range.export.start + k] as usize;
+                garment[s] = g as u32;
+                cell[s] = c.map(|v| v as i32);
+            }
+        }
+        ParticleCollisions {
+            radius,
+            garment,
+            cell,
+            table: (2 * n).next_power_of_two().max(16),
+        }
+    }
+
+    /// Default radius for `garments`: half the smallest rest spacing, so neighbours at rest touch.
+    pub fn default_radius(garments: &[Garment]) -> f32 {
+        garments
+            .iter()
+            .flat_map(|g| g.springs.iter().map(|s| s.rest))
+            .fold(f32::MAX, f32::min)
+            * 0.5
+    }
+
+    /// An empty grid for this model.
+    pub fn grid(&self) -> Grid {
+        Grid {
+            start: vec![0; self.table + 1],
+            items: vec![0; self.garment.len()],
+            bucket: vec![0; self.garment.len()],
+        }
+    }
+
+    /// Integer cell of a position (cells one diameter wide).
+    #[inline]
+    fn cell_of(&self, p: Vec4) -> [i32; 3] {
+        let s = 0.5 / self.radius;
+        [
+            (p.x * s).floor() as i32,
+            (p.y * s).floor() as i32,
+            (p.z * s).floor() as i32,
+        ]
+    }
+
+    #[inline]
+    fn bucket_of(&self, c: [i32; 3]) -> usize {
+        let h = (c[0].wrapping_mul(73_856_093))
+            ^ (c[1].wrapping_mul(19_349_663))
+            ^ (c[2].wrapping_mul(83_492_791));
+        (h as u32 as usize) & (self.table - 1)
+    }
+
+    /// Sorts the particles at positions `q` into `grid` (counting sort by bucket).
+    pub fn build(&self, q: impl Fn(usize) -> Vec4, grid: &mut Grid) {
+        let n = self.garment.len();
+        grid.start.fill(0);
+        for i in 0..n {
+            let b = self.bucket_of(self.cell_of(q(i)));
+            grid.bucket[i] = b as u32;
+            grid.start[b + 1] += 1;
+        }
+        for b in 0..self.table {
+            grid.start[b + 1] += grid.start[b];
+        }
+        // Fill from the back of each bucket so particles keep ascending order within it.
+        let mut end = grid.start.clone();
+        for i in (0..n).rev() {
+            let b = grid.bucket[i] as usize;
+            end[b + 1] -= 1;
+            grid.items[end[b + 1] as usize] = i as u32;
+        }
+    }
+
+    /// The displacement that moves particle `i` out of the particles it overlaps, from positions
+    /// `q` sorted into `grid`; zero for a pinned particle.
+    pub fn push_out(
+        &self,
+        i: usize,
+        q: impl Fn(usize) -> Vec4,
+        inv_mass: &[f32],
+        grid: &Grid,
+    ) -> Vec4 {
+        let wi = inv_mass[i];
+        if wi == 0.0 {
+            return Vec4::ZERO;
+        }
+        let qi = q(i);
+        // Cells are one diameter wide, so every particle closer than a diameter lies in the 2 × 2 × 2
+        // block of cells on the sides of the cell that `qi` is nearest to.
+        let s = 0.5 / self.radius;
+        let scaled = [qi.x * s, qi.y * s, qi.z * s];
+        let c = scaled.map(|v| v.floor() as i32);
+        let side: [i32; 3] = std::array::from_fn(|a| {
+            if scaled[a] - c[a] as f32 >= 0.5 {
+                1
+            } else {
+                -1
+            }
+        });
+        let diameter = 2.0 * self.radius;
+        let mut buckets = [usize::MAX; 8];
+        let mut seen = 0;
+        let mut push = Vec4::ZERO;
+        for corner in 0..8 {
+            let cell: [i32; 3] =
+                std::array::from_fn(|a| c[a] + if corner >> a & 1 == 1 { side[a] } else { 0 });
+            let b = self.bucket_of(cell);
+            // Two cells can share a bucket: visit each bucket once.
+            if buckets[..seen].contains(&b) {
+                continue;
+            }
+            buckets[seen] = b;
+            seen += 1;
+            for &j in &grid.items[grid.start[b] as usize..grid.start[b + 1] as usize] {
+                let j = j as usize;
+                if j == i || self.joined(i, j) {
+                    continue;
+                }
+                let d = qi - q(j);
+                let distance = d.length();
+                if distance >= diameter || distance < 1e-9 {
+                    continue;
+                }
+                let wj = inv_mass[j];
+                push += d * ((diameter - distance) / distance * wi / (wi + wj));
+            }
+        }
+        push
+    }
+
+    /// True when `i` and `j` are particles of one garment within [`SKIP_STEPS`] lattice steps.
+    #[inline]
+    fn joined(&self, i: usize, j: usize) -> bool {
+        self.garment[i] == self.garment[j]
+            && (0..3).all(|a| (self.cell[i][a] - self.cell[j][a]).abs() <= SKIP_STEPS)
+    }
+}
