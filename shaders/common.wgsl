@@ -48,13 +48,15 @@ struct Tether {
     rest: f32,
 }
 
-// An analytic collider (32 bytes): kind 0 plane (normal, offset), kind 1 sphere (center, radius).
+// An analytic collider (48 bytes): kind 0 plane (normal, offset), 1 sphere (center, radius),
+// 2 axis-aligned box (center, half extents), 3 capsule (start, end, radius).
 struct Collider {
     kind: u32,
     friction: f32,
     radius: f32,
     offset: f32,
-    vector: vec4<f32>,         // plane normal or sphere center
+    vector: vec4<f32>,         // plane normal, sphere or box center, capsule start
+    second: vec4<f32>,         // box half extents, capsule end
 }
 
 const B_END: u32 = 0x80000000u;

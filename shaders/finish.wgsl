@@ -9,18 +9,53 @@ fn tether_correction(offset: vec4<f32>, rest: f32) -> vec4<f32> {
     return vec4<f32>(0.0);
 }
 
-// Signed distance to a collider's surface (xyz: outward normal, w: distance).
-fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
-    if (c.kind == 0u) {
-        return vec4<f32>(c.vector.xyz, dot(c.vector.xyz, p) - c.offset);
-    }
-    let d = p - c.vector.xyz;
+// Distance from a ball of `radius` at the origin to `d` (xyz: outward normal, w: distance).
+fn ball_distance(d: vec3<f32>, radius: f32) -> vec4<f32> {
     let len = length(d);
     var n = vec3<f32>(0.0, 1.0, 0.0);
     if (len > TINY_LENGTH) {
         n = d / len;
     }
-    return vec4<f32>(n, len - c.radius);
+    return vec4<f32>(n, len - radius);
+}
+
+// Signed distance from an axis-aligned box of half extents `half` at the origin to `p`.
+fn box_distance(p: vec3<f32>, half: vec3<f32>) -> vec4<f32> {
+    let q = abs(p) - half;
+    let outside = max(q, vec3<f32>(0.0));
+    let out_len = length(outside);
+    if (out_len > 0.0) {
+        return vec4<f32>(outside * sign(p) / out_len, out_len);
+    }
+    var n = vec3<f32>(0.0);
+    var axis = 2u;
+    if (q.x >= q.y && q.x >= q.z) {
+        axis = 0u;
+    } else if (q.y >= q.z) {
+        axis = 1u;
+    }
+    n[axis] = select(-1.0, 1.0, p[axis] >= 0.0);
+    return vec4<f32>(n, q[axis]);
+}
+
+// Signed distance to a collider's surface (xyz: outward normal, w: distance).
+fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
+    switch c.kind {
+        case 0u: {
+            return vec4<f32>(c.vector.xyz, dot(c.vector.xyz, p) - c.offset);
+        }
+        case 2u: {
+            return box_distance(p - c.vector.xyz, c.second.xyz);
+        }
+        case 3u: {
+            let axis = c.second.xyz - c.vector.xyz;
+            let t = clamp(dot(p - c.vector.xyz, axis) / max(dot(axis, axis), 1e-12), 0.0, 1.0);
+            return ball_distance(p - (c.vector.xyz + axis * t), c.radius);
+        }
+        default: {
+            return ball_distance(p - c.vector.xyz, c.radius);
+        }
+    }
 }
 
 // Push out to `radius` from the surface and apply Coulomb friction to the step's motion.

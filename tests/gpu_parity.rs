@@ -115,3 +115,36 @@ fn jacobi_pbd_and_the_sphere_match() {
         );
     }
 }
+
+#[test]
+fn boxes_and_capsules_match() {
+    // A cloth falling across a box and a capsule, both backends, 20 frames (contact from frame 9).
+    let scene = Scene::parse(
+        r#"{ "frames": 20, "substeps": 10,
+             "garments": [{ "resolution": [32, 32], "size": [1.2, 1.2], "position": [0, 0.8, 0] }],
+             "colliders": [
+               { "kind": "box", "center": [-0.25, 0.4, 0], "size": [0.3, 0.4, 0.8] },
+               { "kind": "capsule", "start": [0.2, 0.45, -0.4], "end": [0.3, 0.45, 0.4], "radius": 0.08 }
+             ] }"#,
+        "test",
+    )
+    .expect("scene");
+    let Some((cpu, gpu)) = both(&scene, 20) else {
+        return;
+    };
+    let d = max_distance(&cpu, &gpu);
+    eprintln!("box and capsule: positions differ by {d:.2e} m after 20 frames");
+    assert!(d <= 1e-5, "positions differ by {d} m after 20 frames");
+    for (c, name) in gpu.colliders.iter().zip(["box", "capsule"]) {
+        let touching = gpu
+            .state
+            .positions
+            .iter()
+            .filter(|q| c.distance(q.truncate()).0 < 0.01)
+            .count();
+        assert!(
+            touching > 0,
+            "the cloth should touch the {name} by frame 20"
+        );
+    }
+}

@@ -1,4 +1,5 @@
-//! Collisions with analytic shapes (plane, sphere), resolved by projection after each solve.
+//! Collisions with analytic shapes (plane, sphere, axis-aligned box, capsule), resolved by
+//! projection after each solve.
 //!
 //! A particle closer to a surface than its contact radius (half the cloth thickness) is pushed out
 //! along the surface normal, then Coulomb friction acts on its motion over the step: tangential
@@ -20,6 +21,10 @@ pub enum Shape {
     Plane { normal: Vec3, offset: f32 },
     /// Solid ball.
     Sphere { center: Vec3, radius: f32 },
+    /// Solid axis-aligned box.
+    Box { center: Vec3, half: Vec3 },
+    /// Solid capsule around the segment `start`–`end`.
+    Capsule { start: Vec3, end: Vec3, radius: f32 },
 }
 
 /// A static collider with its friction coefficient.
@@ -54,6 +59,15 @@ impl Collider {
                 center: Vec3::from(spec.center.expect("validated")),
                 radius: spec.radius.expect("validated"),
             },
+            ColliderKind::Box => Shape::Box {
+                center: Vec3::from(spec.center.expect("validated")),
+                half: Vec3::from(spec.size.expect("validated")) * 0.5,
+            },
+            ColliderKind::Capsule => Shape::Capsule {
+                start: Vec3::from(spec.start.expect("validated")),
+                end: Vec3::from(spec.end.expect("validated")),
+                radius: spec.radius.expect("validated"),
+            },
         };
         Collider {
             shape,
@@ -66,11 +80,12 @@ impl Collider {
     pub fn distance(&self, p: Vec3) -> (f32, Vec3) {
         match self.shape {
             Shape::Plane { normal, offset } => (normal.dot(p) - offset, normal),
-            Shape::Sphere { center, radius } => {
-                let d = p - center;
-                let len = d.length();
-                let n = if len > 1e-12 { d / len } else { Vec3::Y };
-                (len - radius, n)
+            Shape::Sphere { center, radius } => ball_distance(p - center, radius),
+            Shape::Box { center, half } => box_distance(p - center, half),
+            Shape::Capsule { start, end, radius } => {
+                let axis = end - start;
+                let t = ((p - start).dot(axis) / axis.length_squared().max(1e-12)).clamp(0.0, 1.0);
+                ball_distance(p - (start + axis * t), radius)
             }
         }
     }
@@ -96,6 +111,38 @@ impl Collider {
         };
         motion.extend(0.0)
     }
+}
+
+/// Distance from a ball of `radius` at the origin to `d`, and the outward normal (+Y at the
+/// centre).
+#[inline]
+fn ball_distance(d: Vec3, radius: f32) -> (f32, Vec3) {
+    let len = d.length();
+    let n = if len > 1e-12 { d / len } else { Vec3::Y };
+    (len - radius, n)
+}
+
+/// Signed distance from an axis-aligned box of half extents `half` at the origin to `p`, and the
+/// outward normal: towards the nearest point outside, along the nearest face's axis inside.
+#[inline]
+fn box_distance(p: Vec3, half: Vec3) -> (f32, Vec3) {
+    let q = p.abs() - half;
+    let outside = q.max(Vec3::ZERO);
+    let out_len = outside.length();
+    if out_len > 0.0 {
+        return (out_len, (outside * p.signum()) / out_len);
+    }
+    // Inside: the face with the largest (least negative) q is nearest.
+    let axis = if q.x >= q.y && q.x >= q.z {
+        0
+    } else if q.y >= q.z {
+        1
+    } else {
+        2
+    };
+    let mut n = Vec3::ZERO;
+    n[axis] = if p[axis] >= 0.0 { 1.0 } else { -1.0 };
+    (q[axis], n)
 }
 
 /// Penetration of the particles `q` into each collider.

@@ -35,38 +35,21 @@ pub fn garment_meshes(garments: &[GarmentRange], frames: &[Vec<Vec3>]) -> Vec<An
 /// Colour of analytic colliders in exports and previews (linear RGB).
 pub const COLLIDER_COLOUR: [f32; 3] = [0.45, 0.47, 0.52];
 
-/// Static meshes of the scene's sphere colliders (one frame each), so exports and previews show
-/// what the cloth lies on. Planes are left out: the preview's floor stands for them.
+/// Static meshes of the scene's sphere, box and capsule colliders (one frame each), so exports
+/// and previews show what the cloth meets. Planes are left out: the preview's floor stands for
+/// them.
 pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<AnimatedMesh> {
-    let (rings, segments) = (16u32, 32u32);
     colliders
         .iter()
         .enumerate()
-        .filter(|(_, c)| c.kind == ColliderKind::Sphere)
         .filter_map(|(i, c)| {
-            let (centre, radius) = (Vec3::from(c.center?), c.radius?);
-            let mut positions = Vec::new();
-            for r in 0..=rings {
-                let theta = std::f32::consts::PI * r as f32 / rings as f32;
-                for s in 0..segments {
-                    let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-                    let d = Vec3::new(
-                        theta.sin() * phi.cos(),
-                        theta.cos(),
-                        theta.sin() * phi.sin(),
-                    );
-                    positions.push(centre + d * radius);
-                }
-            }
-            let mut triangles = Vec::new();
-            for r in 0..rings {
-                for s in 0..segments {
-                    let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
-                    let (c, d) = (a + segments, b + segments);
-                    triangles.push([a, b, c]);
-                    triangles.push([b, d, c]);
-                }
-            }
+            let v = |a: Option<[f32; 3]>| a.map(Vec3::from);
+            let (positions, triangles) = match c.kind {
+                ColliderKind::Plane => return None,
+                ColliderKind::Sphere => rounded(v(c.center)?, v(c.center)?, c.radius?),
+                ColliderKind::Capsule => rounded(v(c.start)?, v(c.end)?, c.radius?),
+                ColliderKind::Box => cuboid(v(c.center)?, v(c.size)? * 0.5),
+            };
             Some(AnimatedMesh {
                 name: format!("collider{i}"),
                 triangles,
@@ -81,6 +64,67 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<AnimatedMesh> {
             })
         })
         .collect()
+}
+
+type Mesh = (Vec<Vec3>, Vec<[u32; 3]>);
+
+/// A sphere of `radius` split at its equator, the half facing `end` moved to `end` and the
+/// other to `start`: a capsule (a sphere when the two coincide).
+fn rounded(start: Vec3, end: Vec3, radius: f32) -> Mesh {
+    let (rings, segments) = (16u32, 32u32);
+    let axis = (end - start).try_normalize().unwrap_or(Vec3::Y);
+    let (u, w) = axis.any_orthonormal_pair();
+    let mut positions = Vec::new();
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        let centre = if r <= rings / 2 { end } else { start };
+        for s in 0..segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            let d = axis * theta.cos() + (u * phi.cos() + w * phi.sin()) * theta.sin();
+            positions.push(centre + d * radius);
+        }
+    }
+    let mut triangles = Vec::new();
+    for r in 0..rings {
+        for s in 0..segments {
+            let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
+            let (c, d) = (a + segments, b + segments);
+            triangles.push([a, c, b]);
+            triangles.push([b, c, d]);
+        }
+    }
+    // Face outwards whatever the handedness of (u, w, axis): check one triangle off the pole.
+    let [a, b, c] = triangles[2 * segments as usize].map(|i| positions[i as usize]);
+    if (b - a).cross(c - a).dot(a - end) < 0.0 {
+        for t in &mut triangles {
+            t.swap(1, 2);
+        }
+    }
+    (positions, triangles)
+}
+
+/// An axis-aligned box of half extents `half` around `centre`.
+fn cuboid(centre: Vec3, half: Vec3) -> Mesh {
+    let positions = (0..8)
+        .map(|k| {
+            let sign = |bit: u32| if k >> bit & 1 == 1 { 1.0 } else { -1.0 };
+            centre + half * Vec3::new(sign(0), sign(1), sign(2))
+        })
+        .collect();
+    // Two triangles per face, counter-clockwise seen from outside.
+    let faces = [
+        [0, 4, 6, 2], // −X
+        [1, 3, 7, 5], // +X
+        [0, 1, 5, 4], // −Y
+        [2, 6, 7, 3], // +Y
+        [0, 2, 3, 1], // −Z
+        [4, 5, 7, 6], // +Z
+    ];
+    let triangles = faces
+        .iter()
+        .flat_map(|[a, b, c, d]| [[*a, *b, *c], [*a, *c, *d]])
+        .collect();
+    (positions, triangles)
 }
 
 /// Total size of `files` [bytes].

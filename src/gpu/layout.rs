@@ -36,17 +36,20 @@ pub struct GpuParticle {
     pub contact_radius: f32,
 }
 
-/// An analytic collider (WGSL `Collider`): kind 0 plane, 1 sphere.
+/// An analytic collider (WGSL `Collider`): kind 0 plane, 1 sphere, 2 box, 3 capsule.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct GpuCollider {
     pub kind: u32,
     pub friction: f32,
+    /// Sphere and capsule radius.
     pub radius: f32,
     /// Plane offset n·x.
     pub offset: f32,
-    /// Plane normal or sphere centre, w = 0.
+    /// Plane normal, sphere or box centre, or capsule start; w = 0.
     pub vector: [f32; 4],
+    /// Box half extents or capsule end; w = 0.
+    pub second: [f32; 4],
 }
 
 /// Bytes between two dispatches' parameters: wgpu's minimum uniform offset alignment.
@@ -54,7 +57,7 @@ pub const PARAMS_STRIDE: u64 = 256;
 
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuParticle>() == 16);
-const _: () = assert!(std::mem::size_of::<GpuCollider>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuCollider>() == 48);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::Slot>() == 12);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelSpring>() == 12);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelTether>() == 12);

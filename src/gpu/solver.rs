@@ -13,7 +13,7 @@ use crate::collide::Shape;
 use crate::error::{Error, Result};
 use crate::scene::SolverKind;
 use crate::sim::Simulation;
-use glam::Vec4;
+use glam::{Vec3, Vec4};
 use wgpu::util::DeviceExt;
 
 /// Threads per workgroup of the per-particle and per-spring kernels (shaders use 64).
@@ -103,9 +103,10 @@ impl GpuSimulation {
             | wgpu::BufferUsages::COPY_SRC
             | wgpu::BufferUsages::COPY_DST;
         let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
-            // wgpu rejects empty bindings: keep one element of the largest struct (32 bytes).
+            // wgpu rejects empty bindings: keep one element of the largest struct (the collider).
+            const LARGEST: usize = std::mem::size_of::<GpuCollider>();
             let bytes = if bytes.is_empty() {
-                &[0u8; 32][..]
+                &[0u8; LARGEST][..]
             } else {
                 bytes
             };
@@ -149,21 +150,21 @@ impl GpuSimulation {
         let colliders: Vec<GpuCollider> = sim
             .colliders
             .iter()
-            .map(|c| match c.shape {
-                Shape::Plane { normal, offset } => GpuCollider {
-                    kind: 0,
-                    friction: c.friction,
-                    radius: 0.0,
-                    offset,
-                    vector: normal.extend(0.0).to_array(),
-                },
-                Shape::Sphere { center, radius } => GpuCollider {
-                    kind: 1,
+            .map(|c| {
+                let (kind, radius, offset, vector, second) = match c.shape {
+                    Shape::Plane { normal, offset } => (0, 0.0, offset, normal, Vec3::ZERO),
+                    Shape::Sphere { center, radius } => (1, radius, 0.0, center, Vec3::ZERO),
+                    Shape::Box { center, half } => (2, 0.0, 0.0, center, half),
+                    Shape::Capsule { start, end, radius } => (3, radius, 0.0, start, end),
+                };
+                GpuCollider {
+                    kind,
                     friction: c.friction,
                     radius,
-                    offset: 0.0,
-                    vector: center.extend(0.0).to_array(),
-                },
+                    offset,
+                    vector: vector.extend(0.0).to_array(),
+                    second: second.extend(0.0).to_array(),
+                }
             })
             .collect();
         let colliders_buffer = init("colliders", bytemuck::cast_slice(&colliders), read);

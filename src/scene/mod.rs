@@ -264,13 +264,17 @@ pub enum ColliderKind {
     Plane,
     /// Solid sphere of `radius` around `center`.
     Sphere,
+    /// Solid axis-aligned box of `size` around `center`.
+    Box,
+    /// Solid capsule: every point within `radius` of the segment from `start` to `end`.
+    Capsule,
 }
 
 /// A static analytic collider. Fields that do not belong to `kind` are rejected by validation.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColliderSpec {
-    /// `"plane"` or `"sphere"`. Required.
+    /// `"plane"`, `"sphere"`, `"box"` or `"capsule"`. Required.
     pub kind: ColliderKind,
     /// Plane: a point on the plane [m]. Default the origin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -278,12 +282,20 @@ pub struct ColliderSpec {
     /// Plane: outward normal (normalised by drape). Default [0, 1, 0].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal: Option<[f32; 3]>,
-    /// Sphere: centre [m]. Required for spheres.
+    /// Sphere, box: centre [m]. Required for them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub center: Option<[f32; 3]>,
-    /// Sphere: radius [m]. Required for spheres.
+    /// Sphere, capsule: radius [m]. Required for them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius: Option<f32>,
+    /// Box: edge lengths along X, Y, Z [m]. Required for boxes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<[f32; 3]>,
+    /// Capsule: the ends of its axis [m]. Required for capsules.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end: Option<[f32; 3]>,
     /// Coulomb friction coefficient against this collider. Default 0.5.
     #[serde(default = "default_friction")]
     pub friction: f32,

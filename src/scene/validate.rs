@@ -199,14 +199,40 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
 
 fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'static str, String)> {
     non_negative(c.friction).map_err(|r| ("friction", r))?;
+    // Each kind takes its own fields and no others.
+    let given = [
+        ("point", c.point.is_some()),
+        ("normal", c.normal.is_some()),
+        ("center", c.center.is_some()),
+        ("radius", c.radius.is_some()),
+        ("size", c.size.is_some()),
+        ("start", c.start.is_some()),
+        ("end", c.end.is_some()),
+    ];
+    let (name, allowed): (&str, &[&str]) = match c.kind {
+        ColliderKind::Plane => ("a plane", &["point", "normal"]),
+        ColliderKind::Sphere => ("a sphere", &["center", "radius"]),
+        ColliderKind::Box => ("a box", &["center", "size"]),
+        ColliderKind::Capsule => ("a capsule", &["start", "end", "radius"]),
+    };
+    if let Some((field, _)) = given.iter().find(|(f, set)| *set && !allowed.contains(f)) {
+        return Err((
+            field,
+            format!("{name} takes {}, not {field}", allowed.join(", ")),
+        ));
+    }
+    let need = |v: Option<[f32; 3]>, field: &'static str| {
+        v.ok_or((field, format!("{name} needs {field}")))
+            .and_then(|v| finite3(v).map(|_| v).map_err(|r| (field, r)))
+    };
+    let radius = || {
+        let r = c
+            .radius
+            .ok_or(("radius", format!("{name} needs a radius")))?;
+        positive(r).map_err(|r| ("radius", r))
+    };
     match c.kind {
         ColliderKind::Plane => {
-            if c.center.is_some() || c.radius.is_some() {
-                return Err((
-                    "center",
-                    "a plane has a point and a normal, not a center or radius".into(),
-                ));
-            }
             if let Some(p) = c.point {
                 finite3(p).map_err(|r| ("point", r))?;
             }
@@ -218,21 +244,23 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
             }
         }
         ColliderKind::Sphere => {
-            if c.point.is_some() || c.normal.is_some() {
+            need(c.center, "center")?;
+            radius()?;
+        }
+        ColliderKind::Box => {
+            need(c.center, "center")?;
+            let size = need(c.size, "size")?;
+            if size.iter().any(|&e| e <= 0.0) {
                 return Err((
-                    "point",
-                    "a sphere has a center and a radius, not a point or normal".into(),
+                    "size",
+                    format!("{size:?}: every edge must be longer than 0"),
                 ));
             }
-            finite3(
-                c.center
-                    .ok_or(("center", "a sphere needs a center".to_string()))?,
-            )
-            .map_err(|r| ("center", r))?;
-            let r = c
-                .radius
-                .ok_or(("radius", "a sphere needs a radius".to_string()))?;
-            positive(r).map_err(|r| ("radius", r))?;
+        }
+        ColliderKind::Capsule => {
+            need(c.start, "start")?;
+            need(c.end, "end")?;
+            radius()?;
         }
     }
     Ok(())
