@@ -20,6 +20,7 @@ use crate::report::{
     Outputs, Report, Timing, SCHEMA,
 };
 use crate::scene::{BackendKind, GltfOutput, Scene};
+use crate::sim::attach::Skin;
 use crate::sim::{metrics, Simulation};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -227,6 +228,24 @@ fn run(
         characters.push(c.report);
         character_meshes.extend(c.mesh);
     }
+    let unbound = sim.attachments.unbound();
+    if !unbound.is_empty() {
+        let skins = character_meshes
+            .iter()
+            .map(|m| Skin {
+                name: m.name.clone(),
+                triangles: m.triangles.clone(),
+                frames: m.frames.clone(),
+            })
+            .collect();
+        sim.attachments
+            .bind_skins(skins)
+            .map_err(|reason| Error::InvalidField {
+                file: options.scene_file.clone(),
+                field: "garments[].attachments".into(),
+                reason,
+            })?;
+    }
     let out = &scene.output;
     let recording =
         out.gltf != GltfOutput::None || out.pc2 || out.usd || out.preview || out.character_obj;
@@ -302,6 +321,7 @@ fn run(
             &error,
             &sim.energy(),
             &initial_energy,
+            sim.driven_energy(),
             sim.integrating(),
         );
         if let Some(reason) = unstable {

@@ -168,7 +168,7 @@ pub fn simulate(
     let mut resting = 0u32;
     // Energy the wind put in so far counts as released, like the potential energy: the work of
     // the force at the start of each frame along that frame's displacement.
-    let mut supplied = initial;
+    let mut supplied = 0.0;
     for f in 1..=frames {
         let wind = wind_forces(sys, &sys.positions).map(|w| (w, sys.positions.clone()));
         let start = Instant::now();
@@ -182,11 +182,15 @@ pub fn simulate(
             let work: f64 = (0..sys.len())
                 .map(|i| force[i].dot(sys.positions[i] - before[i]))
                 .sum();
-            supplied.gravitational += work;
+            supplied += work;
         }
-        if let Some(reason) =
-            unstable_reason(sys.is_finite(), sys.max_strain(), &sys.energy(), &supplied)
-        {
+        if let Some(reason) = unstable_reason(
+            sys.is_finite(),
+            sys.max_strain(),
+            &sys.energy(),
+            &initial,
+            supplied,
+        ) {
             outcome.blowup = Some(Blowup {
                 step: outcome.steps,
                 time: outcome.simulated,

@@ -11,7 +11,7 @@ pub mod stencil;
 pub use coloring::Colouring;
 pub use stencil::{SpringFamily, Stencil};
 
-use crate::scene::{GarmentKind, GarmentSpec};
+use crate::scene::{GarmentKind, GarmentSpec, ParticleSelection};
 use glam::{EulerRot, Mat3, Vec3};
 
 /// A spring between two particles of one garment (grid-order indices).
@@ -53,7 +53,12 @@ pub struct Garment {
     pub tethers: Vec<Tether>,
     /// Colour in exports and previews, linear RGB.
     pub colour: [f32; 3],
+    /// The particles of each of the spec's attachments (grid-order indices; also pinned).
+    pub attached: Vec<Vec<u32>>,
 }
+
+/// Named regions an attachment can select.
+pub const REGIONS: [&str; 4] = ["top_edge", "bottom_edge", "corners", "hole_rim"];
 
 /// Garment colours by index when a scene gives none: cloth-like, distinct, not too saturated.
 pub const PALETTE: [[f32; 3]; 6] = [
@@ -151,6 +156,7 @@ impl Garment {
             contact_radius: spec.thickness * 0.5,
             tethers: Vec::new(),
             colour: spec.colour.unwrap_or(PALETTE[0]),
+            attached: Vec::new(),
         };
         if spec.hole_radius > 0.0 {
             let size = [spec.size[0], spec.size.get(1).copied().unwrap_or(0.0)];
@@ -162,6 +168,16 @@ impl Garment {
             garment.keep(&keep);
         }
         garment.particle_mass = spec.mass / garment.particle_count() as f32;
+        garment.attached = spec
+            .attachments
+            .iter()
+            .map(|a| garment.select(&a.particles))
+            .collect();
+        garment
+            .pins
+            .extend(garment.attached.iter().flatten().copied());
+        garment.pins.sort_unstable();
+        garment.pins.dedup();
         if spec.tethers {
             let rest: Vec<Vec3> = garment
                 .cells
@@ -177,6 +193,74 @@ impl Garment {
             garment.tethers = build_tethers(&rest, &garment.pins);
         }
         garment
+    }
+
+    /// The particles a selection names (grid order, sorted): a region of [`REGIONS`] or grid
+    /// coordinates (negative from the end; cells cut away by a hole are skipped).
+    pub fn select(&self, selection: &ParticleSelection) -> Vec<u32> {
+        // Cell → particle, for the whole lattice (cells cut away map to none).
+        let mut dense = vec![u32::MAX; self.dims.iter().product::<u32>() as usize];
+        for (i, c) in self.cells.iter().enumerate() {
+            dense[index_of(self.dims, *c) as usize] = i as u32;
+        }
+        let index_of_cell = |cell: [u32; 3]| {
+            Some(dense[index_of(self.dims, cell) as usize]).filter(|&i| i != u32::MAX)
+        };
+        let mut out: Vec<u32> = match selection {
+            ParticleSelection::Cells(cells) => cells
+                .iter()
+                .filter_map(|c| {
+                    let mut cell = [0u32; 3];
+                    for (a, &v) in c.iter().enumerate() {
+                        let n = self.dims[a] as i64;
+                        cell[a] = if v < 0 { (n + v) as u32 } else { v as u32 };
+                    }
+                    index_of_cell(cell)
+                })
+                .collect(),
+            ParticleSelection::Region(region) => {
+                let n = self.positions.len() as u32;
+                let ys = || self.positions.iter().map(|p| p.y);
+                let (top, bottom) = (ys().fold(f32::MIN, f32::max), ys().fold(f32::MAX, f32::min));
+                let last = |a: usize| self.dims[a].saturating_sub(1);
+                match region.as_str() {
+                    "top_edge" => (0..n)
+                        .filter(|&i| self.positions[i as usize].y >= top - 1e-4)
+                        .collect(),
+                    "bottom_edge" => (0..n)
+                        .filter(|&i| self.positions[i as usize].y <= bottom + 1e-4)
+                        .collect(),
+                    "corners" => (0..n)
+                        .filter(|&i| {
+                            let c = self.cells[i as usize];
+                            (0..3)
+                                .filter(|&a| self.dims[a] > 1)
+                                .all(|a| c[a] == 0 || c[a] == last(a))
+                        })
+                        .collect(),
+                    // "hole_rim": inside the grid, but an axis neighbour was cut away.
+                    _ => (0..n)
+                        .filter(|&i| {
+                            let c = self.cells[i as usize];
+                            (0..3).filter(|&a| self.dims[a] > 1).any(|a| {
+                                [-1i64, 1].iter().any(|&step| {
+                                    let v = c[a] as i64 + step;
+                                    if v < 0 || v > last(a) as i64 {
+                                        return false;
+                                    }
+                                    let mut neighbour = c;
+                                    neighbour[a] = v as u32;
+                                    index_of_cell(neighbour).is_none()
+                                })
+                            })
+                        })
+                        .collect(),
+                }
+            }
+        };
+        out.sort_unstable();
+        out.dedup();
+        out
     }
 
     /// Removes the particles whose `keep` is false (a hole), with their springs, triangles and

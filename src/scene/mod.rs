@@ -204,6 +204,9 @@ pub struct GarmentSpec {
     pub hole_radius: f32,
     /// Colour in exports and previews, linear RGB in 0…1. Default: one of a palette by index.
     pub colour: Option<[f32; 3]>,
+    /// Particles that follow animated targets (a character's skin, or keyframed rigid motion).
+    /// They are pinned: the solver moves the rest of the cloth after them. Default none.
+    pub attachments: Vec<AttachmentSpec>,
     /// Long-range attachments (Kim, Chentanez and Müller 2012): every free particle stays within
     /// its rest distance of its two nearest pins, so a pinned cloth cannot stretch away from its
     /// pins however few iterations the solver runs. Default true; no effect without pins.
@@ -226,9 +229,54 @@ impl Default for GarmentSpec {
             thickness: 0.005,
             hole_radius: 0.0,
             colour: None,
+            attachments: Vec::new(),
             tethers: true,
         }
     }
+}
+
+/// Garment particles attached to an animated target.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttachmentSpec {
+    /// Which particles: a region (`"top_edge"`, `"bottom_edge"`: the highest or lowest row at
+    /// rest; `"corners"`; `"hole_rim"`: particles next to the cut hole) or grid coordinates
+    /// like `pins`.
+    pub particles: ParticleSelection,
+    /// Follow this character's skin: each particle is bound to the nearest point of its surface
+    /// at frame `frame` and keeps its offset in that triangle's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub character: Option<String>,
+    /// Character frame to bind at. Default 0.
+    #[serde(default)]
+    pub frame: u32,
+    /// Or follow a keyframed rigid motion (linear between keys, held after the last).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keyframes: Vec<KeyframeSpec>,
+    /// Point the keyframed rotation turns about [m]. Default the particles' centroid at rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pivot: Option<[f32; 3]>,
+}
+
+/// A named region of a garment or explicit grid coordinates.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum ParticleSelection {
+    Region(String),
+    Cells(Vec<Vec<i64>>),
+}
+
+/// A key of a rigid motion: at `time`, translate by `translation` after rotating by `rotation`
+/// (Euler degrees, X then Y then Z) about the pivot.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeSpec {
+    /// Seconds from the start of the bake.
+    pub time: f32,
+    #[serde(default)]
+    pub translation: [f32; 3],
+    #[serde(default)]
+    pub rotation: [f32; 3],
 }
 
 /// Projective Dynamics spring weights [N/m]. Shear and bend springs exist only when their

@@ -105,6 +105,21 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
             return Err(fail(at("time_offset"), "must be finite".into()));
         }
     }
+    for (i, g) in scene.garments.iter().enumerate() {
+        for a in &g.attachments {
+            if let Some(name) = &a.character {
+                let known = scene.characters.iter().enumerate().any(|(k, c)| {
+                    c.name.clone().unwrap_or_else(|| format!("character{k}")) == *name
+                });
+                if !known {
+                    return Err(fail(
+                        format!("garments[{i}].attachments"),
+                        format!("no character named {name:?} in this scene"),
+                    ));
+                }
+            }
+        }
+    }
     for (i, c) in scene.colliders.iter().enumerate() {
         validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
     }
@@ -181,20 +196,73 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
             ));
         }
     }
-    for pin in &g.pins {
-        if pin.len() != axes {
-            return Err(("pins", format!("pin {pin:?} needs {axes} grid coordinates")));
+    check_cells(&g.pins, axes, &g.resolution, "pins")?;
+    for a in &g.attachments {
+        match &a.particles {
+            super::ParticleSelection::Region(r) => {
+                if !crate::garment::REGIONS.contains(&r.as_str()) {
+                    return Err((
+                        "attachments",
+                        format!(
+                            "unknown region {r:?} (known: {})",
+                            crate::garment::REGIONS.join(", ")
+                        ),
+                    ));
+                }
+            }
+            super::ParticleSelection::Cells(cells) => {
+                check_cells(cells, axes, &g.resolution, "attachments")?
+            }
         }
-        for (&c, &n) in pin.iter().zip(&g.resolution) {
-            if c >= n as i64 || c < -(n as i64) {
+        match (&a.character, a.keyframes.is_empty()) {
+            (Some(_), false) | (None, true) => {
                 return Err((
-                    "pins",
-                    format!("pin {pin:?} lies outside the {:?} grid", g.resolution),
+                    "attachments",
+                    "an attachment follows either a character or keyframes, exactly one".into(),
+                ))
+            }
+            _ => {}
+        }
+        for (k, key) in a.keyframes.iter().enumerate() {
+            let finite = key.time.is_finite()
+                && key
+                    .translation
+                    .iter()
+                    .chain(&key.rotation)
+                    .all(|v| v.is_finite());
+            let ordered = k == 0 || key.time > a.keyframes[k - 1].time;
+            if !finite || key.time < 0.0 || !ordered {
+                return Err((
+                    "attachments",
+                    format!("keyframe {k}: times must be finite, at least 0 and increasing"),
                 ));
             }
         }
     }
     Ok(g.resolution.iter().map(|&n| n as u64).product())
+}
+
+/// Grid coordinates (pins, attachments): one per grid axis, inside the grid.
+fn check_cells(
+    cells: &[Vec<i64>],
+    axes: usize,
+    resolution: &[u32],
+    field: &'static str,
+) -> std::result::Result<(), (&'static str, String)> {
+    for cell in cells {
+        if cell.len() != axes {
+            return Err((field, format!("{cell:?} needs {axes} grid coordinates")));
+        }
+        for (&c, &n) in cell.iter().zip(resolution) {
+            if c >= n as i64 || c < -(n as i64) {
+                return Err((
+                    field,
+                    format!("{cell:?} lies outside the {resolution:?} grid"),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'static str, String)> {

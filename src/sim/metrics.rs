@@ -60,7 +60,9 @@ impl Energy {
 pub fn energy(model: &Model, state: &State, gravity: Vec3) -> Energy {
     let mut e = Energy::default();
     let g = gravity.as_dvec3();
-    for i in 0..model.particle_count() {
+    // Pinned and attached particles are moved by the scene, not the simulation: their energy is
+    // not the cloth's.
+    for i in (0..model.particle_count()).filter(|&i| model.inv_mass[i] != 0.0) {
         let m = model.mass[i] as f64;
         let x = state.positions[i].truncate().as_dvec3();
         let v = state.velocities[i].truncate().as_dvec3();
@@ -82,6 +84,7 @@ pub fn instability(
     error: &ConstraintError,
     energy: &Energy,
     initial: &Energy,
+    supplied: f64,
     integrating: bool,
 ) -> Option<String> {
     if !state.is_finite() {
@@ -90,18 +93,21 @@ pub fn instability(
     if !integrating {
         return (!error.max_strain.is_finite()).then(|| NOT_FINITE.into());
     }
-    unstable_reason(true, error.max_strain, energy, initial)
+    unstable_reason(true, error.max_strain, energy, initial, supplied)
 }
 
 const NOT_FINITE: &str = "positions are no longer finite";
 
 /// The stability rule of `scenes.md` on plain numbers, shared by every solver and integrator:
-/// `finite` (every position), the largest structural strain, and the energies now and at the start.
+/// `finite` (every position), the largest structural strain, the energies now and at the start,
+/// and the energy `supplied` from outside so far (work of the wind, of animated attachments),
+/// which counts as released like the potential energy.
 pub fn unstable_reason(
     finite: bool,
     max_strain: f64,
     energy: &Energy,
     initial: &Energy,
+    supplied: f64,
 ) -> Option<String> {
     if !finite || !max_strain.is_finite() || !energy.kinetic.is_finite() {
         return Some(NOT_FINITE.into());
@@ -119,11 +125,12 @@ pub fn unstable_reason(
     }
     // Energy released so far: by gravity, and by springs that started stretched (scene E).
     let released = (initial.gravitational - energy.gravitational).max(0.0)
-        + (initial.elastic - energy.elastic).max(0.0);
+        + (initial.elastic - energy.elastic).max(0.0)
+        + supplied.max(0.0);
     // A floor of 1 µJ keeps the first steps, which have released almost nothing, from counting.
     if energy.kinetic > 10.0 * released + 1e-6 {
         return Some(format!(
-            "kinetic energy {:.3e} J exceeds 10 × the {:.3e} J of potential energy released",
+            "kinetic energy {:.3e} J exceeds 10 × the {:.3e} J of energy released or supplied",
             energy.kinetic, released
         ));
     }

@@ -3,6 +3,7 @@
 //! predict (integrate) → solve (constraints) → tethers → collide.
 //! A whole frame runs as one [`team`] region: every thread runs the stage list on its share.
 
+pub mod attach;
 pub mod constraint;
 pub mod integrate;
 pub mod metrics;
@@ -56,6 +57,12 @@ pub struct Simulation {
     grid: RwLock<Grid>,
     /// Each particle's push out of the others in the current substep.
     pushes: Vec<Vec4>,
+    /// Particles following animated targets.
+    pub attachments: attach::Attachments,
+    /// Frames per second (the clock of characters and keyframes).
+    fps: f32,
+    /// Fastest any attached particle has been driven so far [m/s].
+    driven_speed: f32,
 }
 
 impl Simulation {
@@ -104,7 +111,13 @@ impl Simulation {
                 0
             }
         ];
+        let attachments = attach::Attachments::new(&scene.garments, garments, |g, p| {
+            model.storage_of[model.garments[g].export.start + p as usize]
+        });
         Simulation {
+            attachments,
+            fps: scene.fps,
+            driven_speed: 0.0,
             particle_collisions,
             grid,
             pushes,
@@ -131,10 +144,11 @@ impl Simulation {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
-        if self.shells.is_empty() {
+        if self.shells.is_empty() && self.attachments.list.is_empty() {
             self.run_substeps(self.substeps);
         } else {
-            // Characters move every substep: their shells advance between team regions.
+            // Characters and attachment targets move every substep: they advance between team
+            // regions.
             for _ in 0..self.substeps {
                 self.substep();
             }
@@ -157,7 +171,30 @@ impl Simulation {
                 s.advance(from, to, reach);
             }
         }
+        self.place_attachments();
         self.run_substeps(1);
+    }
+
+    /// Puts every attached particle where its target is at the end of the coming substep, with
+    /// the velocity that got it there.
+    fn place_attachments(&mut self) {
+        let t = (self.elapsed_substeps + 1) as f32 / (self.substeps as f32 * self.fps);
+        for a in &self.attachments.list {
+            let i = a.particle as usize;
+            let target = self.attachments.position(a, t, self.fps).extend(0.0);
+            self.state.velocities[i] = (target - self.state.positions[i]) / self.step;
+            self.driven_speed = self.driven_speed.max(self.state.velocities[i].length());
+            self.state.positions[i] = target;
+        }
+    }
+
+    /// Kinetic energy the attachments may have given the garments so far: all of their mass at
+    /// the fastest speed any attached particle has been driven [J]. The stability rule counts it
+    /// as released energy, as it does the potential energy: a cloth dragged by its attachments
+    /// gains kinetic energy without falling.
+    pub fn driven_energy(&self) -> f64 {
+        let mass: f64 = self.model.mass.iter().map(|&m| m as f64).sum();
+        0.5 * mass * (self.driven_speed as f64).powi(2)
     }
 
     /// Runs `count` substeps in one team region.

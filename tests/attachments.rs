@@ -1,0 +1,203 @@
+//! Attachments: particles on a keyframed rail or a turning pivot sit exactly where the analytic
+//! motion puts them after every frame, and the cloth follows; particles tied to the mannequin's
+//! skin ride it rigidly; bad attachments are input errors; the GPU backend says it cannot.
+
+mod common;
+
+use drape::bake::{bake, BakeOptions};
+use drape::sim::attach::Target;
+use drape::sim::Simulation;
+use glam::{Quat, Vec3};
+
+/// A vertical 1 m curtain whose top edge slides 0.6 m along +X in the first second.
+const CURTAIN: &str = r#"{ "frames": 90, "substeps": 10, "backend": "cpu",
+  "garments": [{ "name": "curtain", "resolution": [20, 20], "size": [1, 1], "position": [0, 1, 0],
+                 "rotation": [90, 0, 0], "stiffness": { "stretch": 10000, "bend": 100 },
+                 "attachments": [{ "particles": "top_edge",
+                                   "keyframes": [{ "time": 0 }, { "time": 1, "translation": [0.6, 0, 0] }] }] }] }"#;
+
+#[test]
+fn a_curtain_rail_carries_its_top_edge_exactly() {
+    let scene = common::scene(CURTAIN);
+    let mut sim = Simulation::new(&scene);
+    let rest: Vec<(usize, Vec3)> = sim
+        .attachments
+        .list
+        .iter()
+        .map(|a| match a.target {
+            Target::Keyframed { rest, .. } => (a.particle as usize, rest),
+            _ => panic!("keyframed"),
+        })
+        .collect();
+    assert_eq!(rest.len(), 20, "the top row");
+    let mut worst = 0.0f32;
+    for frame in 1..=scene.frames {
+        sim.step_frame();
+        let t = (frame as f32 / 60.0).min(1.0);
+        for &(i, r) in &rest {
+            let expected = r + Vec3::new(0.6 * t, 0.0, 0.0);
+            worst = worst.max(sim.state.positions[i].truncate().distance(expected));
+        }
+    }
+    eprintln!("rail: attached particles at most {worst} m from the analytic rail");
+    assert!(worst < 1e-5, "attached particles {worst} m from the rail");
+    // The rest of the curtain followed: its centre moved most of the way too.
+    let centre = sim.export_positions().iter().sum::<Vec3>() / 400.0;
+    assert!(centre.x > 0.5, "curtain centre at x = {}", centre.x);
+}
+
+#[test]
+fn a_turning_pivot_carries_a_rope_end_exactly() {
+    // A rope's first particle turns 90° about a vertical axis through [0, 1, 0] in 0.5 s.
+    let text = r#"{ "frames": 45, "substeps": 10, "backend": "cpu",
+      "garments": [{ "name": "rope", "kind": "rope", "resolution": [30], "size": [0.6], "position": [0.5, 1, 0],
+                     "attachments": [{ "particles": [[0]], "pivot": [0, 1, 0],
+                                       "keyframes": [{ "time": 0 }, { "time": 0.5, "rotation": [0, 90, 0] }] }] }] }"#;
+    let scene = common::scene(text);
+    let mut sim = Simulation::new(&scene);
+    let i = sim.attachments.list[0].particle as usize;
+    let start = sim.state.positions[i].truncate();
+    for frame in 1..=scene.frames {
+        sim.step_frame();
+        let angle = (frame as f32 / 60.0 / 0.5).min(1.0) * std::f32::consts::FRAC_PI_2;
+        let expected = Vec3::new(0.0, 1.0, 0.0)
+            + Quat::from_rotation_y(angle) * (start - Vec3::new(0.0, 1.0, 0.0));
+        let d = sim.state.positions[i].truncate().distance(expected);
+        assert!(d < 1e-5, "frame {frame}: {d} m off the turning pivot");
+    }
+}
+
+#[test]
+fn particles_tied_to_the_skin_ride_it() {
+    // A small cloth hanging from the mannequin's right forearm as the arms rise.
+    let body = std::env::current_dir()
+        .unwrap()
+        .join("characters/mannequin/raise_arms");
+    let text = format!(
+        r#"{{ "frames": 30, "substeps": 10, "backend": "cpu",
+              "garments": [{{ "name": "sleeve", "resolution": [6, 6], "size": [0.08, 0.08], "position": [0.33, 1.12, 0.0],
+                              "rotation": [0, 0, 90],
+                              "attachments": [{{ "particles": "top_edge", "character": "body" }}] }}],
+              "characters": [{{ "name": "body", "file": {:?}, "sequence_fps": 12 }}] }}"#,
+        body.display().to_string()
+    );
+    let dir = common::temp_dir();
+    let scene = common::scene(&text);
+    let options = BakeOptions {
+        out: dir.path().join("out"),
+        scene_file: "test".into(),
+        threads: Some(2),
+        progress: false,
+        shell_cache: Some(dir.path().join("cache")),
+    };
+    let result = bake(&scene, &options).expect("bake");
+    assert!(result.report.stable, "{:?}", result.report.failure);
+    // Read the bake back: the glTF holds the sleeve and the body, frame by frame.
+    let (meshes, _) = drape::export::gltf::read(
+        &dir.path()
+            .join("out")
+            .join(result.report.outputs.gltf.unwrap()),
+    )
+    .unwrap();
+    let (sleeve, skin) = (&meshes[0], &meshes[1]);
+    // Rebind independently of drape: each top-row particle's nearest skin triangle at frame 1.
+    // The top row: the highest particles at the first frame.
+    let high = sleeve.frames[0]
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MIN, f32::max);
+    let top: Vec<usize> = (0..sleeve.frames[0].len())
+        .filter(|&p| sleeve.frames[0][p].y > high - 1e-4)
+        .collect();
+    assert_eq!(top.len(), 6);
+    let (mut moved, mut drift) = (0.0f32, 0.0f32);
+    for &p in &top {
+        let x0 = sleeve.frames[0][p];
+        let tri = skin
+            .triangles
+            .iter()
+            .min_by(|a, b| {
+                let d = |t: &[u32; 3]| {
+                    t.iter()
+                        .map(|&v| skin.frames[0][v as usize].distance(x0))
+                        .sum::<f32>()
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        // Distances to the triangle's corners stay as they were (the mannequin's capsules are
+        // rigid), while the particle itself travels with the arm.
+        let corners =
+            |k: usize| tri.map(|v| skin.frames[k][v as usize].distance(sleeve.frames[k][p]));
+        let first = corners(0);
+        for k in 1..sleeve.frames.len() {
+            let now = corners(k);
+            for c in 0..3 {
+                drift = drift.max((now[c] - first[c]).abs());
+                assert!(
+                    (now[c] - first[c]).abs() < 1e-4,
+                    "particle {p} frame {k}: corner {c} {} → {}",
+                    first[c],
+                    now[c]
+                );
+            }
+        }
+        moved = moved.max(sleeve.frames.last().unwrap()[p].distance(x0));
+    }
+    eprintln!("skin attachments: carried up to {moved} m, distances to their triangle's corners changed by at most {drift} m");
+    assert!(moved > 0.1, "the forearm carried the sleeve only {moved} m");
+}
+
+#[test]
+fn bad_attachments_are_input_errors() {
+    let dir = common::temp_dir();
+    for (attachment, expect) in [
+        (
+            r#"{ "particles": "top", "keyframes": [{ "time": 0 }] }"#,
+            "unknown region",
+        ),
+        (r#"{ "particles": "corners" }"#, "exactly one"),
+        (
+            r#"{ "particles": "corners", "character": "nobody" }"#,
+            "no character named",
+        ),
+        (
+            r#"{ "particles": "corners", "keyframes": [{ "time": 1 }, { "time": 0.5 }] }"#,
+            "increasing",
+        ),
+        (
+            r#"{ "particles": [[40, 0]], "keyframes": [{ "time": 0 }] }"#,
+            "outside",
+        ),
+    ] {
+        let text = format!(r#"{{ "garments": [{{ "attachments": [{attachment}] }}] }}"#);
+        common::write(dir.path(), "scene.json", &text);
+        let out = common::drape(dir.path(), &["inspect", "scene.json"]);
+        assert_eq!(out.status.code(), Some(2), "{attachment}");
+        let err = common::stderr(&out);
+        assert!(
+            err.contains("attachments") && err.contains(expect),
+            "{attachment}: {err}"
+        );
+    }
+}
+
+#[test]
+fn the_gpu_backend_refuses_attachments() {
+    let dir = common::temp_dir();
+    common::write(
+        dir.path(),
+        "scene.json",
+        &CURTAIN.replace("\"cpu\"", "\"gpu\""),
+    );
+    let out = common::drape(
+        dir.path(),
+        &["bake", "scene.json", "--out", "out", "--frames", "2"],
+    );
+    assert!(!out.status.success());
+    assert!(
+        common::stderr(&out).contains("attachments"),
+        "{}",
+        common::stderr(&out)
+    );
+}
