@@ -56,7 +56,7 @@ struct Collider {
     radius: f32,
     offset: f32,
     vector: vec4<f32>,         // plane normal, sphere or box center, capsule start
-    second: vec4<f32>,         // box half extents, capsule end
+    second: vec4<f32>,         // box half extents, capsule end; w = 1: swept test on
 }
 
 const B_END: u32 = 0x80000000u;

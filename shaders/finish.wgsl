@@ -58,8 +58,58 @@ fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
     }
 }
 
-// Push out to `radius` from the surface and apply Coulomb friction to the step's motion.
-fn collider_resolve(c: Collider, xi: vec4<f32>, d: vec4<f32>, radius: f32) -> vec4<f32> {
+// The fraction of the step at which a particle leaving `x` (outside) by `d` first comes within
+// `radius` of a static collider, when its end point has passed back out; 2 when it does not
+// (sphere tracing along the path, as Collider::first_contact on the CPU).
+fn first_contact(c: Collider, x: vec3<f32>, d: vec3<f32>, radius: f32) -> f32 {
+    let length = length(d);
+    let begin = collider_distance(c, x);
+    let start = begin.w - radius;
+    if (start >= length || length < 1e-9) {
+        return 2.0;
+    }
+    let end = collider_distance(c, x + d);
+    if (end.w < radius) {
+        return 2.0;
+    }
+    if (start <= 0.0) {
+        // Touching at the start, clear at the end: through the solid if the surface faces the
+        // other way there.
+        return select(2.0, 0.0, dot(begin.xyz, end.xyz) < 0.0);
+    }
+    // March to where the path first comes within `radius`, then on to see whether it enters the
+    // solid itself (grazing the contact layer is left to the end-point test).
+    var s = 0.0;
+    var touch = 2.0;
+    for (var k = 0; k < 64; k++) {
+        let dist = collider_distance(c, x + d * s).w;
+        if (touch > 1.0 && dist - radius <= 1e-6) {
+            touch = s;
+        } else if (touch <= 1.0 && dist <= 0.0) {
+            return touch;
+        }
+        var gap = dist;
+        if (touch > 1.0) {
+            gap = dist - radius;
+        }
+        s = s + max(gap, 1e-4 * radius) / length;
+        if (s >= 1.0) {
+            return 2.0;
+        }
+    }
+    return 2.0;
+}
+
+// Push out to `radius` from the surface and apply Coulomb friction to the step's motion; with
+// the swept test on, stop first where the path touches the surface.
+fn collider_resolve(c: Collider, xi: vec4<f32>, d_in: vec4<f32>, radius: f32) -> vec4<f32> {
+    var d = d_in;
+    if (c.second.w > 0.5) {
+        let s = first_contact(c, xi.xyz, d.xyz, radius);
+        if (s <= 1.0) {
+            d = vec4<f32>(d.xyz * s, 0.0);
+        }
+    }
     let hit = collider_distance(c, (xi + d).xyz);
     let push = radius - hit.w;
     if (push <= 0.0) {

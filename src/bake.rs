@@ -359,7 +359,8 @@ fn run(
             }
         }
         let characters = meshes.len() - model.garments.len();
-        meshes.extend(collider_meshes(&scene.colliders));
+        let times: Vec<f32> = (1..=baked).map(|k| k as f32 / scene.fps).collect();
+        meshes.extend(collider_meshes(&scene.colliders, &times));
         let rest: Vec<Vec<Vec3>> = model
             .garments
             .iter()

@@ -13,8 +13,11 @@ fn signed_distances_of_box_and_capsule() {
         shape: Shape::Box {
             center: Vec3::new(1.0, 0.0, 0.0),
             half: Vec3::new(0.5, 1.0, 2.0),
+            rotation: glam::Quat::IDENTITY,
         },
         friction: 0.0,
+        moved: Vec3::ZERO,
+        swept: true,
     };
     // Outside a face, an edge and a corner; inside nearest the +X face.
     let cases = [
@@ -45,6 +48,8 @@ fn signed_distances_of_box_and_capsule() {
             radius: 0.5,
         },
         friction: 0.0,
+        moved: Vec3::ZERO,
+        swept: true,
     };
     // Beside the shaft, beyond an end cap, inside.
     for (p, distance) in [
@@ -91,4 +96,90 @@ fn cloth_rests_on_a_box_and_a_capsule_without_entering() {
             "{collider}: highest point {top} m"
         );
     }
+}
+
+#[test]
+fn the_swept_test_stops_paths_that_cross_a_thin_plate() {
+    // A 1 cm plate; a particle crossing it within one step ends beyond it unless swept.
+    let plate = |swept| Collider {
+        shape: Shape::Box {
+            center: Vec3::ZERO,
+            half: Vec3::new(1.0, 0.005, 1.0),
+            rotation: glam::Quat::IDENTITY,
+        },
+        friction: 0.0,
+        moved: Vec3::ZERO,
+        swept,
+    };
+    let (x, delta) = (
+        glam::Vec4::new(0.0, 0.05, 0.0, 0.0),
+        glam::Vec4::new(0.0, -0.1, 0.0, 0.0),
+    );
+    let through = plate(false).resolve(x, delta, 0.0025);
+    assert_eq!(
+        through, delta,
+        "end-point test only: the particle passes through"
+    );
+    let stopped = plate(true).resolve(x, delta, 0.0025);
+    assert!(
+        (x + stopped).y >= 0.0075 - 1e-5,
+        "swept: stops on top, at {}",
+        (x + stopped).y
+    );
+}
+
+#[test]
+fn a_fast_sphere_carries_the_particles_it_sweeps_over() {
+    // The sphere moved 0.5 m along +Z in one step, right through a particle at rest.
+    let sphere = |swept| Collider {
+        shape: Shape::Sphere {
+            center: Vec3::new(0.0, 0.0, 0.3),
+            radius: 0.1,
+        },
+        friction: 0.0,
+        moved: Vec3::new(0.0, 0.0, 0.5),
+        swept,
+    };
+    let x = glam::Vec4::ZERO;
+    let missed = sphere(false).resolve(x, glam::Vec4::ZERO, 0.0025);
+    assert_eq!(
+        missed,
+        glam::Vec4::ZERO,
+        "end-point test only: the sphere passed over it"
+    );
+    let carried = sphere(true).resolve(x, glam::Vec4::ZERO, 0.0025);
+    // Met by the front of the sphere (which moves towards +Z) and carried: it ends on the front
+    // surface, z = 0.3 + 0.1025.
+    assert!(
+        (carried.z - (0.3 + 0.1025)).abs() < 1e-4,
+        "carried to z = {}",
+        carried.z
+    );
+}
+
+#[test]
+fn cloth_falling_fast_onto_a_thin_plate_stays_on_it_only_with_the_swept_test() {
+    let lowest = |swept: bool| {
+        let scene = common::scene(&format!(
+            r#"{{ "frames": 40, "substeps": 1, "backend": "cpu", "swept_collisions": {swept},
+                  "garments": [{{ "resolution": [12, 12], "size": [0.6, 0.6], "position": [0, 1.6, 0] }}],
+                  "colliders": [{{ "kind": "box", "center": [0, 0.5, 0], "size": [1.5, 0.01, 1.5] }}] }}"#
+        ));
+        let mut sim = Simulation::new(&scene);
+        for _ in 0..scene.frames {
+            sim.step_frame();
+        }
+        sim.export_positions()
+            .iter()
+            .map(|p| p.y)
+            .fold(f32::MAX, f32::min)
+    };
+    // After a 1.1 m fall the cloth moves ~7.6 cm per step at one step per frame, more than the
+    // plate is thick.
+    let (with, without) = (lowest(true), lowest(false));
+    assert!(with > 0.5, "swept: lowest particle at {with} m");
+    assert!(
+        without < 0.49,
+        "end-point only: lowest particle at {without} m (it should fall through)"
+    );
 }

@@ -148,3 +148,30 @@ fn boxes_and_capsules_match() {
         );
     }
 }
+
+#[test]
+fn the_swept_test_holds_cloth_on_a_thin_plate_on_the_gpu_too() {
+    // One step per frame: the cloth moves farther per step than the plate is thick.
+    let scene = Scene::parse(
+        r#"{ "frames": 40, "substeps": 1,
+             "garments": [{ "resolution": [12, 12], "size": [0.6, 0.6], "position": [0, 1.6, 0] }],
+             "colliders": [{ "kind": "box", "center": [0, 0.5, 0], "size": [1.5, 0.01, 1.5] }] }"#,
+        "test",
+    )
+    .expect("scene");
+    let Some((cpu, gpu)) = both(&scene, 40) else {
+        return;
+    };
+    let lowest = gpu
+        .state
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MAX, f32::min);
+    assert!(
+        lowest > 0.5,
+        "GPU: lowest particle at {lowest} m, under the plate"
+    );
+    let d = max_distance(&cpu, &gpu);
+    assert!(d <= 1e-4, "positions differ by {d} m after 40 frames");
+}

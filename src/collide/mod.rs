@@ -12,7 +12,7 @@ pub mod shell;
 pub use shell::ShellCollider;
 
 use crate::scene::{ColliderKind, ColliderSpec};
-use glam::{Vec3, Vec4};
+use glam::{EulerRot, Quat, Vec3, Vec4};
 
 /// An analytic shape.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,17 +21,70 @@ pub enum Shape {
     Plane { normal: Vec3, offset: f32 },
     /// Solid ball.
     Sphere { center: Vec3, radius: f32 },
-    /// Solid axis-aligned box.
-    Box { center: Vec3, half: Vec3 },
+    /// Solid box, turned by `rotation` about its centre (identity: axis-aligned).
+    Box {
+        center: Vec3,
+        half: Vec3,
+        rotation: Quat,
+    },
     /// Solid capsule around the segment `start`–`end`.
     Capsule { start: Vec3, end: Vec3, radius: f32 },
 }
 
-/// A static collider with its friction coefficient.
+/// A collider with its friction coefficient.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Collider {
     pub shape: Shape,
     pub friction: f32,
+    /// How far the collider moved over the current substep [m] (zero when static): the swept
+    /// test follows particles relative to it.
+    pub moved: Vec3,
+    /// Test the path of each particle over the substep, not only its end.
+    pub swept: bool,
+}
+
+impl Shape {
+    /// The reference point a keyframed motion turns the shape about.
+    pub fn centre(&self) -> Vec3 {
+        match *self {
+            Shape::Plane { normal, offset } => normal * offset,
+            Shape::Sphere { center, .. } | Shape::Box { center, .. } => center,
+            Shape::Capsule { start, end, .. } => (start + end) * 0.5,
+        }
+    }
+
+    /// The shape moved rigidly: turned by `rotation` about `pivot`, then shifted by
+    /// `translation`.
+    pub fn moved(&self, pivot: Vec3, rotation: Quat, translation: Vec3) -> Shape {
+        let point = |p: Vec3| pivot + rotation * (p - pivot) + translation;
+        match *self {
+            Shape::Plane { normal, offset } => {
+                let n = rotation * normal;
+                Shape::Plane {
+                    normal: n,
+                    offset: n.dot(point(normal * offset)),
+                }
+            }
+            Shape::Sphere { center, radius } => Shape::Sphere {
+                center: point(center),
+                radius,
+            },
+            Shape::Box {
+                center,
+                half,
+                rotation: r,
+            } => Shape::Box {
+                center: point(center),
+                half,
+                rotation: rotation * r,
+            },
+            Shape::Capsule { start, end, radius } => Shape::Capsule {
+                start: point(start),
+                end: point(end),
+                radius,
+            },
+        }
+    }
 }
 
 /// Particles inside one collider at one instant.
@@ -62,6 +115,10 @@ impl Collider {
             ColliderKind::Box => Shape::Box {
                 center: Vec3::from(spec.center.expect("validated")),
                 half: Vec3::from(spec.size.expect("validated")) * 0.5,
+                rotation: spec.rotation.map_or(Quat::IDENTITY, |r| {
+                    let [x, y, z] = r.map(f32::to_radians);
+                    Quat::from_euler(EulerRot::XYZ, x, y, z)
+                }),
             },
             ColliderKind::Capsule => Shape::Capsule {
                 start: Vec3::from(spec.start.expect("validated")),
@@ -72,6 +129,8 @@ impl Collider {
         Collider {
             shape,
             friction: spec.friction,
+            moved: Vec3::ZERO,
+            swept: true,
         }
     }
 
@@ -81,7 +140,14 @@ impl Collider {
         match self.shape {
             Shape::Plane { normal, offset } => (normal.dot(p) - offset, normal),
             Shape::Sphere { center, radius } => ball_distance(p - center, radius),
-            Shape::Box { center, half } => box_distance(p - center, half),
+            Shape::Box {
+                center,
+                half,
+                rotation,
+            } => {
+                let (d, n) = box_distance(rotation.inverse() * (p - center), half);
+                (d, rotation * n)
+            }
             Shape::Capsule { start, end, radius } => {
                 let axis = end - start;
                 let t = ((p - start).dot(axis) / axis.length_squared().max(1e-12)).clamp(0.0, 1.0);
@@ -91,10 +157,19 @@ impl Collider {
     }
 
     /// Resolves a particle that starts the step at `x` and moves by `delta`: pushes it out to
-    /// `radius` from the surface and applies friction to its motion over the step. Returns the
-    /// corrected displacement (unchanged, bit for bit, when there is no contact).
+    /// `radius` from the surface and applies friction to its motion over the step. With the swept
+    /// test on, a particle whose path (relative to the collider) enters the solid part-way is
+    /// stopped where it first touches, so a thin or fast collider cannot be passed through.
+    /// Returns the corrected displacement (unchanged, bit for bit, when there is no contact).
     #[inline]
     pub fn resolve(&self, x: Vec4, delta: Vec4, radius: f32) -> Vec4 {
+        let mut delta = delta;
+        if self.swept {
+            if let Some(s) = self.first_contact(x.truncate(), delta.truncate(), radius) {
+                // Stop at the touching point of the path, carried along with the collider.
+                delta = (delta.truncate() * s + self.moved * (1.0 - s)).extend(0.0);
+            }
+        }
         let (dist, n) = self.distance((x + delta).truncate());
         let push = radius - dist;
         if push <= 0.0 {
@@ -110,6 +185,52 @@ impl Collider {
             motion - tangent * (limit / t_len)
         };
         motion.extend(0.0)
+    }
+
+    /// The fraction of the step at which a particle starting at `x` (outside) and moving by
+    /// `delta` first comes within `radius` of the surface, following its path relative to the
+    /// collider (sphere tracing), when the path then goes into the solid and the end point has
+    /// passed back out (so the end-point test alone would miss it). None otherwise.
+    #[inline]
+    fn first_contact(&self, x: Vec3, delta: Vec3, radius: f32) -> Option<f32> {
+        // Relative to the collider's pose at the end of the step, the particle goes from
+        // x + moved to x + delta.
+        let at = |s: f32| x + delta * s + self.moved * (1.0 - s);
+        let length = (delta - self.moved).length();
+        let (start, n0) = self.distance(at(0.0));
+        let start = start - radius;
+        // Far away, or barely moving: the end-point test is enough.
+        if start >= length || length < 1e-9 {
+            return None;
+        }
+        let (end, n1) = self.distance(at(1.0));
+        if end < radius {
+            return None; // ends inside: the push-out handles it
+        }
+        if start <= 0.0 {
+            // Touching at the start and clear at the end: through the solid if the surface
+            // faces the other way there.
+            return (n0.dot(n1) < 0.0).then_some(0.0);
+        }
+        // March to where the path first comes within `radius` of the surface, then on to see
+        // whether it enters the solid itself: a path that only grazes the contact layer (a
+        // chord across a curved surface) is left to the end-point test, so cloth still slides.
+        let mut s = 0.0f32;
+        let mut touch = None;
+        for _ in 0..64 {
+            let d = self.distance(at(s)).0;
+            match touch {
+                None if d - radius <= 1e-6 => touch = Some(s),
+                Some(t) if d <= 0.0 => return Some(t),
+                _ => {}
+            }
+            let gap = if touch.is_none() { d - radius } else { d };
+            s += gap.max(1e-4 * radius) / length;
+            if s >= 1.0 {
+                return None;
+            }
+        }
+        None
     }
 }
 

@@ -35,10 +35,10 @@ pub fn garment_meshes(garments: &[GarmentRange], frames: &[Vec<Vec3>]) -> Vec<An
 /// Colour of analytic colliders in exports and previews (linear RGB).
 pub const COLLIDER_COLOUR: [f32; 3] = [0.45, 0.47, 0.52];
 
-/// Static meshes of the scene's sphere, box and capsule colliders (one frame each), so exports
-/// and previews show what the cloth meets. Planes are left out: the preview's floor stands for
-/// them.
-pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<AnimatedMesh> {
+/// Meshes of the scene's sphere, box and capsule colliders, so exports and previews show what
+/// the cloth meets: one frame for a static collider, one per time in `times` [s] for a keyframed
+/// one. Planes are left out: the preview's floor stands for them.
+pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<AnimatedMesh> {
     colliders
         .iter()
         .enumerate()
@@ -48,7 +48,28 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<AnimatedMesh> {
                 ColliderKind::Plane => return None,
                 ColliderKind::Sphere => rounded(v(c.center)?, v(c.center)?, c.radius?),
                 ColliderKind::Capsule => rounded(v(c.start)?, v(c.end)?, c.radius?),
-                ColliderKind::Box => cuboid(v(c.center)?, v(c.size)? * 0.5),
+                ColliderKind::Box => {
+                    // Built at the origin, then turned and placed like the collider.
+                    let (p, t) = cuboid(Vec3::ZERO, v(c.size)? * 0.5);
+                    let shape = crate::collide::Collider::from_spec(c).shape;
+                    let crate::collide::Shape::Box {
+                        center, rotation, ..
+                    } = shape
+                    else {
+                        return None;
+                    };
+                    (p.iter().map(|q| center + rotation * *q).collect(), t)
+                }
+            };
+            let frames = if c.keyframes.is_empty() {
+                vec![positions]
+            } else {
+                let pivot = crate::collide::Collider::from_spec(c).shape.centre();
+                let track = crate::sim::attach::Track::new(&c.keyframes, pivot);
+                times
+                    .iter()
+                    .map(|&t| positions.iter().map(|p| track.apply(*p, t)).collect())
+                    .collect()
             };
             Some(AnimatedMesh {
                 name: format!("collider{i}"),
@@ -60,7 +81,7 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<AnimatedMesh> {
                     COLLIDER_COLOUR[2],
                     1.0,
                 ],
-                frames: vec![positions],
+                frames,
             })
         })
         .collect()

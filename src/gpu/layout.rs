@@ -48,7 +48,7 @@ pub struct GpuCollider {
     pub offset: f32,
     /// Plane normal, sphere or box centre, or capsule start; w = 0.
     pub vector: [f32; 4],
-    /// Box half extents or capsule end; w = 0.
+    /// Box half extents or capsule end; w = 1 when the swept test is on.
     pub second: [f32; 4],
 }
 

@@ -71,6 +71,12 @@ impl GpuSimulation {
                 reason: "attachments are simulated on the CPU backend only so far".into(),
             });
         }
+        let turned = |c: &crate::collide::Collider| matches!(c.shape, Shape::Box { rotation, .. } if rotation != glam::Quat::IDENTITY);
+        if sim.moving_colliders() || sim.colliders.iter().any(turned) {
+            return Err(Error::Gpu {
+                reason: "moving (keyframed) and rotated colliders are simulated on the CPU backend only so far".into(),
+            });
+        }
         if sim.particle_collisions.is_some() {
             return Err(Error::Gpu {
                 reason: "particle collisions are simulated on the CPU backend only so far".into(),
@@ -159,7 +165,7 @@ impl GpuSimulation {
                 let (kind, radius, offset, vector, second) = match c.shape {
                     Shape::Plane { normal, offset } => (0, 0.0, offset, normal, Vec3::ZERO),
                     Shape::Sphere { center, radius } => (1, radius, 0.0, center, Vec3::ZERO),
-                    Shape::Box { center, half } => (2, 0.0, 0.0, center, half),
+                    Shape::Box { center, half, .. } => (2, 0.0, 0.0, center, half),
                     Shape::Capsule { start, end, radius } => (3, radius, 0.0, start, end),
                 };
                 GpuCollider {
@@ -168,7 +174,8 @@ impl GpuSimulation {
                     radius,
                     offset,
                     vector: vector.extend(0.0).to_array(),
-                    second: second.extend(0.0).to_array(),
+                    // w: 1 when the swept test is on.
+                    second: second.extend(if c.swept { 1.0 } else { 0.0 }).to_array(),
                 }
             })
             .collect();

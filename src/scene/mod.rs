@@ -53,6 +53,9 @@ pub struct Scene {
     /// Radius of a garment particle in those collisions [m]; particles keep twice this apart.
     /// Default: half the smallest rest spacing of any garment.
     pub particle_radius: Option<f32>,
+    /// Test each particle's path over a substep against analytic colliders, not only where it
+    /// ends, so fast colliders and large steps do not let cloth through. Default true.
+    pub swept_collisions: bool,
     /// Folder that relative paths in the scene are resolved against (the scene file's folder;
     /// the working folder for the embedded scene). Not a scene field.
     #[serde(skip)]
@@ -92,6 +95,7 @@ impl Default for Scene {
             characters: Vec::new(),
             particle_collisions: false,
             particle_radius: None,
+            swept_collisions: true,
             base_dir: std::path::PathBuf::from("."),
             output: OutputSpec::default(),
             backend: BackendKind::Auto,
@@ -344,6 +348,13 @@ pub struct ColliderSpec {
     pub start: Option<[f32; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub end: Option<[f32; 3]>,
+    /// Box: orientation, Euler degrees (X, Y, Z) about its centre. Default none (axis-aligned).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<[f32; 3]>,
+    /// A keyframed rigid motion of the collider about its centre (a plane's point, a capsule's
+    /// midpoint), linear between keys, held after the last. Default none (static).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keyframes: Vec<KeyframeSpec>,
     /// Coulomb friction coefficient against this collider. Default 0.5.
     #[serde(default = "default_friction")]
     pub friction: f32,

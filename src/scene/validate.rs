@@ -276,11 +276,12 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
         ("size", c.size.is_some()),
         ("start", c.start.is_some()),
         ("end", c.end.is_some()),
+        ("rotation", c.rotation.is_some()),
     ];
     let (name, allowed): (&str, &[&str]) = match c.kind {
         ColliderKind::Plane => ("a plane", &["point", "normal"]),
         ColliderKind::Sphere => ("a sphere", &["center", "radius"]),
-        ColliderKind::Box => ("a box", &["center", "size"]),
+        ColliderKind::Box => ("a box", &["center", "size", "rotation"]),
         ColliderKind::Capsule => ("a capsule", &["start", "end", "radius"]),
     };
     if let Some((field, _)) = given.iter().find(|(f, set)| *set && !allowed.contains(f)) {
@@ -299,6 +300,23 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
             .ok_or(("radius", format!("{name} needs a radius")))?;
         positive(r).map_err(|r| ("radius", r))
     };
+    if let Some(r) = c.rotation {
+        finite3(r).map_err(|r| ("rotation", r))?;
+    }
+    for (k, key) in c.keyframes.iter().enumerate() {
+        let finite = key.time.is_finite()
+            && key
+                .translation
+                .iter()
+                .chain(&key.rotation)
+                .all(|v| v.is_finite());
+        if !finite || key.time < 0.0 || (k > 0 && key.time <= c.keyframes[k - 1].time) {
+            return Err((
+                "keyframes",
+                format!("keyframe {k}: times must be finite, at least 0 and increasing"),
+            ));
+        }
+    }
     match c.kind {
         ColliderKind::Plane => {
             if let Some(p) = c.point {

@@ -42,7 +42,8 @@ pub struct Track {
 }
 
 impl Track {
-    fn new(keys: &[KeyframeSpec], pivot: Vec3) -> Track {
+    /// The motion of `keys` about `pivot`.
+    pub fn new(keys: &[KeyframeSpec], pivot: Vec3) -> Track {
         Track {
             pivot,
             keys: keys
@@ -59,20 +60,24 @@ impl Track {
         }
     }
 
-    /// Where the motion takes point `p` at time `t` (held before the first and after the last
-    /// key).
-    pub fn apply(&self, p: Vec3, t: f32) -> Vec3 {
+    /// Rotation (about the pivot) and translation at time `t` (held before the first and after
+    /// the last key).
+    pub fn pose(&self, t: f32) -> (Quat, Vec3) {
         let i = self.keys.partition_point(|k| k.0 <= t);
-        let (translation, rotation) = if i == 0 {
-            (self.keys[0].1, self.keys[0].2)
+        if i == 0 {
+            (self.keys[0].2, self.keys[0].1)
         } else if i == self.keys.len() {
-            let k = self.keys[i - 1];
-            (k.1, k.2)
+            (self.keys[i - 1].2, self.keys[i - 1].1)
         } else {
             let (a, b) = (self.keys[i - 1], self.keys[i]);
             let w = (t - a.0) / (b.0 - a.0);
-            (a.1.lerp(b.1, w), a.2.slerp(b.2, w))
-        };
+            (a.2.slerp(b.2, w), a.1.lerp(b.1, w))
+        }
+    }
+
+    /// Where the motion takes point `p` at time `t`.
+    pub fn apply(&self, p: Vec3, t: f32) -> Vec3 {
+        let (rotation, translation) = self.pose(t);
         self.pivot + rotation * (p - self.pivot) + translation
     }
 }

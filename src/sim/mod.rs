@@ -61,8 +61,10 @@ pub struct Simulation {
     pub attachments: attach::Attachments,
     /// Frames per second (the clock of characters and keyframes).
     fps: f32,
-    /// Fastest any attached particle has been driven so far [m/s].
+    /// Fastest any attached particle or keyframed collider has moved so far [m/s].
     driven_speed: f32,
+    /// Keyframed colliders: (index in `colliders`, motion, shape at rest).
+    collider_motion: Vec<(usize, attach::Track, crate::collide::Shape)>,
 }
 
 impl Simulation {
@@ -125,7 +127,28 @@ impl Simulation {
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
             delta: vec![Vec4::ZERO; model.particle_count()],
-            colliders: scene.colliders.iter().map(Collider::from_spec).collect(),
+            colliders: scene
+                .colliders
+                .iter()
+                .map(|spec| Collider {
+                    swept: scene.swept_collisions,
+                    ..Collider::from_spec(spec)
+                })
+                .collect(),
+            collider_motion: scene
+                .colliders
+                .iter()
+                .enumerate()
+                .filter(|(_, spec)| !spec.keyframes.is_empty())
+                .map(|(i, spec)| {
+                    let shape = Collider::from_spec(spec).shape;
+                    (
+                        i,
+                        attach::Track::new(&spec.keyframes, shape.centre()),
+                        shape,
+                    )
+                })
+                .collect(),
             shells: Vec::new(),
             elapsed_substeps: 0,
             verlet: integrating.then(|| Verlet::new(gravity, scene.damping, step)),
@@ -144,7 +167,10 @@ impl Simulation {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
-        if self.shells.is_empty() && self.attachments.list.is_empty() {
+        if self.shells.is_empty()
+            && self.attachments.list.is_empty()
+            && self.collider_motion.is_empty()
+        {
             self.run_substeps(self.substeps);
         } else {
             // Characters and attachment targets move every substep: they advance between team
@@ -175,10 +201,23 @@ impl Simulation {
         self.run_substeps(1);
     }
 
+    /// True when some collider follows keyframes.
+    pub fn moving_colliders(&self) -> bool {
+        !self.collider_motion.is_empty()
+    }
+
     /// Puts every attached particle where its target is at the end of the coming substep, with
-    /// the velocity that got it there.
+    /// the velocity that got it there, and every keyframed collider in its pose then.
     fn place_attachments(&mut self) {
         let t = (self.elapsed_substeps + 1) as f32 / (self.substeps as f32 * self.fps);
+        for (i, track, rest) in &self.collider_motion {
+            let (rotation, translation) = track.pose(t);
+            let shape = rest.moved(track.pivot, rotation, translation);
+            let c = &mut self.colliders[*i];
+            c.moved = shape.centre() - c.shape.centre();
+            c.shape = shape;
+            self.driven_speed = self.driven_speed.max(c.moved.length() / self.step);
+        }
         for a in &self.attachments.list {
             let i = a.particle as usize;
             let target = self.attachments.position(a, t, self.fps).extend(0.0);
@@ -188,10 +227,11 @@ impl Simulation {
         }
     }
 
-    /// Kinetic energy the attachments may have given the garments so far: all of their mass at
-    /// the fastest speed any attached particle has been driven [J]. The stability rule counts it
-    /// as released energy, as it does the potential energy: a cloth dragged by its attachments
-    /// gains kinetic energy without falling.
+    /// Kinetic energy attachments and moving colliders may have given the garments so far: all
+    /// of their mass at the fastest speed any attached particle or collider has been driven
+    /// [J]. The stability rule counts it as released energy, as it does the potential energy: a
+    /// cloth dragged by its attachments or hit by a moving collider gains kinetic energy without
+    /// falling.
     pub fn driven_energy(&self) -> f64 {
         let mass: f64 = self.model.mass.iter().map(|&m| m as f64).sum();
         0.5 * mass * (self.driven_speed as f64).powi(2)
