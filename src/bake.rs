@@ -16,8 +16,8 @@ use crate::export::{FrameWriter, Staging};
 use crate::gpu::{GpuContext, GpuSimulation};
 use crate::render::{render_sequence, RenderOptions};
 use crate::report::{
-    Adapter, Backend, CharacterReport, ColliderPenetration, Failure, FrameMetrics, GarmentReport,
-    Outputs, Report, Timing, SCHEMA,
+    Adapter, Backend, CharacterReport, ColliderPenetration, Failure, FrameMetrics,
+    FramePenetrations, GarmentReport, Outputs, Report, Timing, SCHEMA,
 };
 use crate::scene::{BackendKind, GltfOutput, Scene};
 use crate::sim::attach::Skin;
@@ -300,6 +300,11 @@ fn run(
                 .iter()
                 .map(|s| s.penetration(&sim.state.positions)),
         );
+        report.penetrations_per_frame.push(FramePenetrations {
+            frame,
+            inside: penetrations.iter().map(|p| p.inside).collect(),
+            deepest_m: penetrations.iter().map(|p| p.deepest).collect(),
+        });
         for (w, p) in worst_penetration.iter_mut().zip(&penetrations) {
             w.inside = w.inside.max(p.inside);
             w.deepest = w.deepest.max(p.deepest);
@@ -453,6 +458,7 @@ fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads:
         last_frame: None,
         worst_frame: None,
         worst_penetrations: Vec::new(),
+        penetrations_per_frame: Vec::new(),
         stable: true,
         failure: None,
         warnings: Vec::new(),

@@ -183,3 +183,37 @@ fn cloth_falling_fast_onto_a_thin_plate_stays_on_it_only_with_the_swept_test() {
         "end-point only: lowest particle at {without} m (it should fall through)"
     );
 }
+
+#[test]
+fn the_report_lists_penetrations_frame_by_frame() {
+    let dir = common::temp_dir();
+    common::write(
+        dir.path(),
+        "scene.json",
+        r#"{ "frames": 30, "substeps": 10, "backend": "cpu",
+             "garments": [{ "resolution": [16, 16], "size": [1, 1], "position": [0, 0.9, 0] }],
+             "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }, { "kind": "plane" }] }"#,
+    );
+    let out = common::drape(
+        dir.path(),
+        &["bake", "scene.json", "--out", "out", "--gltf", "none"],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/report.json")).unwrap())
+            .unwrap();
+    let frames = report["penetrations_per_frame"]
+        .as_array()
+        .expect("per-frame penetrations");
+    assert_eq!(frames.len(), 30);
+    for (k, f) in frames.iter().enumerate() {
+        assert_eq!(f["frame"], k + 1);
+        assert_eq!(
+            f["inside"].as_array().unwrap().len(),
+            2,
+            "one entry per collider"
+        );
+        // Particles keep half the thickness from the sphere: none inside in any frame.
+        assert_eq!(f["inside"][0], 0, "frame {}", k + 1);
+    }
+}

@@ -34,6 +34,9 @@ pub struct Report {
     pub worst_frame: Option<FrameMetrics>,
     /// Deepest penetration of each collider over the whole bake.
     pub worst_penetrations: Vec<ColliderPenetration>,
+    /// Every baked frame's penetrations: per collider (the scene's `colliders`, then the
+    /// characters), the particles inside and the deepest of them [m].
+    pub penetrations_per_frame: Vec<FramePenetrations>,
     pub stable: bool,
     pub failure: Option<Failure>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.
@@ -148,6 +151,14 @@ pub struct ColliderPenetration {
     pub collider: usize,
     #[serde(flatten)]
     pub penetration: Penetration,
+}
+
+/// One frame's penetrations, collider by collider.
+#[derive(Clone, Debug, Serialize)]
+pub struct FramePenetrations {
+    pub frame: u32,
+    pub inside: Vec<usize>,
+    pub deepest_m: Vec<f32>,
 }
 
 /// Why a bake stopped early.
