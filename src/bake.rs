@@ -188,6 +188,7 @@ pub fn load_characters(
                     1.0,
                 ],
                 frames: character.frames.clone(),
+                topology: Vec::new(),
             })
         } else {
             warnings.push(format!(
@@ -279,6 +280,13 @@ fn run(
         });
     }
     let initial_energy = sim.energy();
+    // Faces of each garment whenever tearing changes them: (first frame index, triangles).
+    let mut topology: Vec<Vec<(usize, Vec<[u32; 3]>)>> = sim
+        .model()
+        .garments
+        .iter()
+        .map(|g| vec![(0, g.triangles.clone())])
+        .collect();
     let progress = progress_bar(scene.frames as u64, options.progress);
     let mut frame_ms = Vec::with_capacity(scene.frames as usize);
     let mut residuals = Vec::new();
@@ -290,6 +298,17 @@ fn run(
         match &mut gpu {
             Some(g) => g.step_frame(&mut sim)?,
             None => sim.step_frame(),
+        }
+        if sim.tears() && sim.tear() > 0 {
+            if let Some(w) = &mut writer {
+                w.set_garments(sim.model().garments.clone());
+            }
+            // From this frame on the garments have these faces (previews follow them).
+            for (g, history) in sim.model().garments.iter().zip(&mut topology) {
+                if history.last().is_none_or(|(_, t)| *t != g.triangles) {
+                    history.push((frame as usize - 1, g.triangles.clone()));
+                }
+            }
         }
         frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
 
@@ -347,6 +366,7 @@ fn run(
     }
     progress.finish_and_clear();
     report.ms_per_frame = Timing::of(&frame_ms);
+    report.torn_springs = sim.torn_springs;
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&worst_penetration);
     if sim.residuals.is_some() {
@@ -355,6 +375,11 @@ fn run(
     if report.frames_baked > 0 {
         let model = sim.model();
         let mut meshes = garment_meshes(&model.garments, &recorded);
+        for (mesh, history) in meshes.iter_mut().zip(topology) {
+            if history.len() > 1 {
+                mesh.topology = history;
+            }
+        }
         let baked = report.frames_baked as usize;
         for mut c in character_meshes {
             // Character frame k is the pose at garment frame k (frame 0 is the start).
@@ -459,6 +484,7 @@ fn empty_report(scene: &Scene, options: &BakeOptions, sim: &Simulation, threads:
         worst_frame: None,
         worst_penetrations: Vec::new(),
         penetrations_per_frame: Vec::new(),
+        torn_springs: 0,
         stable: true,
         failure: None,
         warnings: Vec::new(),

@@ -107,6 +107,7 @@ fn sheet(flip: bool) -> AnimatedMesh {
         uvs: None,
         colour: [0.7, 0.2, 0.2, 1.0],
         frames: vec![positions],
+        topology: vec![],
     }
 }
 
@@ -169,6 +170,7 @@ fn nothing_to_render_is_an_error_not_a_black_image() {
         uvs: None,
         colour: [1.0; 4],
         frames: vec![vec![]],
+        topology: vec![],
     };
     let err = Renderer::new(ctx, &[empty], RenderOptions::default())
         .err()

@@ -33,6 +33,21 @@ pub struct AnimatedMesh {
     pub colour: [f32; 4],
     /// Positions of every vertex, per frame.
     pub frames: Vec<Vec<Vec3>>,
+    /// When the faces change during the sequence (tearing): (first frame index, triangles)
+    /// in order; `triangles` holds the last. Empty: `triangles` throughout. glTF keeps one
+    /// topology, the last; previews and OBJ frames follow the changes.
+    pub topology: Vec<(usize, Vec<[u32; 3]>)>,
+}
+
+impl AnimatedMesh {
+    /// The triangles of frame `k`.
+    pub fn triangles_at(&self, k: usize) -> &[[u32; 3]] {
+        self.topology
+            .iter()
+            .rev()
+            .find(|(first, _)| *first <= k)
+            .map_or(&self.triangles, |(_, t)| t)
+    }
 }
 
 /// glTF container.
@@ -318,6 +333,7 @@ pub fn read(path: &Path) -> Result<(Vec<AnimatedMesh>, f32)> {
             uvs,
             colour,
             frames,
+            topology: Vec::new(),
         });
     }
     let mut fps = 0.0;

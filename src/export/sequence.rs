@@ -28,6 +28,7 @@ pub fn garment_meshes(garments: &[GarmentRange], frames: &[Vec<Vec3>]) -> Vec<An
                 .iter()
                 .map(|f| f[g.export.clone()].to_vec())
                 .collect(),
+            topology: Vec::new(),
         })
         .collect()
 }
@@ -82,6 +83,7 @@ pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<Animate
                     1.0,
                 ],
                 frames,
+                topology: Vec::new(),
             })
         })
         .collect()

@@ -61,6 +61,14 @@ impl FrameWriter {
         }
     }
 
+    /// Writes later frames with these garments' faces (after tearing). Only an inline writer
+    /// can change them; the GPU backend, which uses the threaded one, does not tear.
+    pub fn set_garments(&mut self, garments: Vec<GarmentRange>) {
+        if let Some((_, g)) = &mut self.inline {
+            *g = garments;
+        }
+    }
+
     /// Queues frame `frame` (positions in export order). Fails with the writer's error if it
     /// stopped.
     pub fn write(&mut self, frame: u32, positions: Vec<Vec3>) -> Result<()> {

@@ -66,6 +66,11 @@ impl GpuSimulation {
                         .into(),
             });
         }
+        if sim.tears() {
+            return Err(Error::Gpu {
+                reason: "tearing is simulated on the CPU backend only so far".into(),
+            });
+        }
         if !sim.attachments.is_empty() {
             return Err(Error::Gpu {
                 reason: "attachments are simulated on the CPU backend only so far".into(),

@@ -76,6 +76,8 @@ struct MeshBuffers {
     triangles: Option<(wgpu::Buffer, u32)>,
     edges: Option<(wgpu::Buffer, u32)>,
     vertex_count: u32,
+    /// Topology changes (tearing) applied so far, see `AnimatedMesh::topology`.
+    topology_applied: usize,
 }
 
 /// An off-screen renderer for one sequence of meshes.
@@ -100,17 +102,27 @@ pub struct Renderer {
     padded_row: u32,
 }
 
-/// The bounding box of every vertex of every frame.
+/// The bounding box of every drawn vertex of every frame (a vertex in no triangle of a mesh
+/// with triangles, such as a particle torn free, is not drawn and does not count).
 pub fn bounds(meshes: &[AnimatedMesh]) -> Option<(Vec3, Vec3)> {
-    let mut all = meshes
-        .iter()
-        .flat_map(|m| m.frames.iter().flatten())
-        .peekable();
-    all.peek()?;
-    Some(all.fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    ))
+    let mut lo = Vec3::splat(f32::MAX);
+    let mut hi = Vec3::splat(f32::MIN);
+    let mut any = false;
+    for m in meshes {
+        let n = m.frames.first().map_or(0, Vec::len);
+        let mut drawn = vec![m.triangles.is_empty(); n];
+        for &i in m.triangles.iter().flatten() {
+            drawn[i as usize] = true;
+        }
+        for frame in &m.frames {
+            for (p, _) in frame.iter().zip(&drawn).filter(|(_, d)| **d) {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+                any = true;
+            }
+        }
+    }
+    any.then_some((lo, hi))
 }
 
 /// Unique edges of `triangles` as line-list indices.
@@ -181,30 +193,33 @@ impl Renderer {
             })
         };
         let vertex_usage = wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST;
-        let mesh_buffers = |m: &AnimatedMesh| MeshBuffers {
-            vertices: buffer(
-                &m.name,
-                bytemuck::cast_slice(&interleave(&m.frames[0], &m.triangles)),
-                vertex_usage,
-            ),
-            triangles: (!m.triangles.is_empty()).then(|| {
-                (
-                    buffer(
-                        "triangles",
-                        bytemuck::cast_slice(&m.triangles),
-                        wgpu::BufferUsages::INDEX,
-                    ),
-                    m.triangles.len() as u32 * 3,
-                )
-            }),
-            edges: (options.wireframe && !m.triangles.is_empty()).then(|| {
-                let e = edges(&m.triangles);
-                (
-                    buffer("edges", bytemuck::cast_slice(&e), wgpu::BufferUsages::INDEX),
-                    e.len() as u32,
-                )
-            }),
-            vertex_count: m.frames[0].len() as u32,
+        // Index buffers start with the first frame's faces, the most there will be (tearing
+        // only removes faces), and are rewritten when the faces change.
+        let index_usage = wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST;
+        let mesh_buffers = |m: &AnimatedMesh| {
+            let first = m.triangles_at(0);
+            MeshBuffers {
+                vertices: buffer(
+                    &m.name,
+                    bytemuck::cast_slice(&interleave(&m.frames[0], first)),
+                    vertex_usage,
+                ),
+                triangles: (!first.is_empty()).then(|| {
+                    (
+                        buffer("triangles", bytemuck::cast_slice(first), index_usage),
+                        first.len() as u32 * 3,
+                    )
+                }),
+                edges: (options.wireframe && !first.is_empty()).then(|| {
+                    let e = edges(first);
+                    (
+                        buffer("edges", bytemuck::cast_slice(&e), index_usage),
+                        e.len() as u32,
+                    )
+                }),
+                vertex_count: m.frames[0].len() as u32,
+                topology_applied: m.topology.iter().filter(|(f, _)| *f == 0).count(),
+            }
         };
         let gpu_meshes: Vec<MeshBuffers> = meshes.iter().map(mesh_buffers).collect();
         let (c, h) = (view.floor_centre, view.floor_half);
@@ -219,6 +234,7 @@ impl Renderer {
                 c + Vec3::new(h, 0.0, h),
                 c + Vec3::new(-h, 0.0, h),
             ]],
+            topology: Vec::new(),
         };
         let floor = mesh_buffers(&floor_mesh);
         // Draw slots: one per mesh, then the floor, then the wireframe colour (the bind groups
@@ -525,12 +541,27 @@ impl Renderer {
     /// Renders frame `k` of `meshes` (the meshes the renderer was built for) to an RGBA image.
     pub fn render(&mut self, meshes: &[AnimatedMesh], k: usize) -> Result<image::RgbaImage> {
         let queue = &self.ctx.queue;
-        for (m, gpu) in meshes.iter().zip(&self.meshes) {
+        for (m, gpu) in meshes.iter().zip(self.meshes.iter_mut()) {
             let frame = &m.frames[k.min(m.frames.len() - 1)];
+            let triangles = m.triangles_at(k);
+            let applied = m.topology.iter().filter(|(f, _)| *f <= k).count();
+            if applied != gpu.topology_applied {
+                // The faces changed (tearing): fewer of them from this frame on.
+                gpu.topology_applied = applied;
+                if let Some((buffer, count)) = &mut gpu.triangles {
+                    queue.write_buffer(buffer, 0, bytemuck::cast_slice(triangles));
+                    *count = triangles.len() as u32 * 3;
+                }
+                if let Some((buffer, count)) = &mut gpu.edges {
+                    let e = edges(triangles);
+                    queue.write_buffer(buffer, 0, bytemuck::cast_slice(&e));
+                    *count = e.len() as u32;
+                }
+            }
             queue.write_buffer(
                 &gpu.vertices,
                 0,
-                bytemuck::cast_slice(&interleave(frame, &m.triangles)),
+                bytemuck::cast_slice(&interleave(frame, triangles)),
             );
         }
         let mut encoder = self

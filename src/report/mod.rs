@@ -37,6 +37,8 @@ pub struct Report {
     /// Every baked frame's penetrations: per collider (the scene's `colliders`, then the
     /// characters), the particles inside and the deepest of them [m].
     pub penetrations_per_frame: Vec<FramePenetrations>,
+    /// Springs broken by tearing over the bake.
+    pub torn_springs: usize,
     pub stable: bool,
     pub failure: Option<Failure>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.

@@ -197,6 +197,9 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
         }
     }
     check_cells(&g.pins, axes, &g.resolution, "pins")?;
+    if let Some(t) = g.tear_strain {
+        positive(t).map_err(|r| ("tear_strain", r))?;
+    }
     for a in &g.attachments {
         match &a.particles {
             super::ParticleSelection::Region(r) => {

@@ -11,6 +11,7 @@ pub mod model;
 pub mod solver;
 pub mod state;
 pub mod team;
+pub mod tear;
 
 use crate::collide::particles::{Grid, ParticleCollisions};
 use crate::collide::{Collider, ShellCollider};
@@ -65,6 +66,11 @@ pub struct Simulation {
     driven_speed: f32,
     /// Keyframed colliders: (index in `colliders`, motion, shape at rest).
     collider_motion: Vec<(usize, attach::Track, crate::collide::Shape)>,
+    /// The garments as built (and as torn so far), and each one's tearing strain.
+    garments: Vec<Garment>,
+    tear_strain: Vec<Option<f32>>,
+    /// Springs broken so far.
+    pub torn_springs: usize,
 }
 
 impl Simulation {
@@ -117,6 +123,9 @@ impl Simulation {
             model.storage_of[model.garments[g].export.start + p as usize]
         });
         Simulation {
+            garments: garments.to_vec(),
+            tear_strain: scene.garments.iter().map(|g| g.tear_strain).collect(),
+            torn_springs: 0,
             attachments,
             fps: scene.fps,
             driven_speed: 0.0,
@@ -160,6 +169,34 @@ impl Simulation {
             state,
             solver,
         }
+    }
+
+    /// Breaks the springs of tearable garments stretched past their strain, and rebuilds the
+    /// model and solver around what is left (particle storage order stays the same).
+    pub fn tear(&mut self) -> usize {
+        let positions = self.export_positions();
+        let mut broken = 0;
+        for (g, threshold) in self.tear_strain.clone().into_iter().enumerate() {
+            let Some(threshold) = threshold else { continue };
+            let range = self.model.garments[g].export.clone();
+            broken += tear::tear(&mut self.garments[g], &positions[range], threshold);
+        }
+        if broken > 0 {
+            self.torn_springs += broken;
+            self.model = Model::new(&self.garments);
+            self.solver = Solver::new(
+                &self.model,
+                self.solver.settings.clone(),
+                self.verlet.map(|v| v.step),
+            );
+            self.projection = vec![Vec4::ZERO; self.model.springs.len()];
+        }
+        broken
+    }
+
+    /// True when some garment can tear.
+    pub fn tears(&self) -> bool {
+        self.tear_strain.iter().any(Option::is_some)
     }
 
     /// Advances one frame (all substeps).

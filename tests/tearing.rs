@@ -1,0 +1,84 @@
+//! Tearing: a cloth pulled by a grab breaks its overstretched springs and keeps simulating, and
+//! the faces written frame by frame follow the torn topology; without tearing the same pull
+//! overstretches it past the stability rule; the GPU backend says it cannot.
+
+mod common;
+
+/// A 20 × 20 cloth pinned along its top row, its bottom-left corner grabbed and pulled away.
+fn scene(tear: bool) -> String {
+    let pins: Vec<String> = (0..20).map(|i| format!("[{i}, 0]")).collect();
+    format!(
+        r#"{{ "frames": 60, "substeps": 10, "backend": "cpu", "solver": {{ "iterations": 2 }},
+              "garments": [{{ "name": "cloth", "resolution": [20, 20], "size": [1, 1], "position": [0, 1.2, 0],
+                              "rotation": [90, 0, 0], "tethers": false, "pins": [{pins}]{tear},
+                              "attachments": [{{ "particles": [[0, -1], [1, -1], [2, -1], [3, -1], [4, -1], [5, -1]],
+                                                "keyframes": [{{ "time": 0.1 }}, {{ "time": 0.9, "translation": [-0.3, -0.9, 0.4] }}] }}] }}] }}"#,
+        pins = pins.join(", "),
+        tear = if tear { r#", "tear_strain": 0.2"# } else { "" }
+    )
+}
+
+fn faces(path: &std::path::Path) -> usize {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .count()
+}
+
+#[test]
+fn a_pulled_cloth_tears_and_its_faces_follow() {
+    let dir = common::temp_dir();
+    common::write(dir.path(), "scene.json", &scene(true));
+    let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/report.json")).unwrap())
+            .unwrap();
+    let torn = report["torn_springs"].as_u64().unwrap();
+    assert!(torn > 0, "nothing tore");
+    assert_eq!(report["stable"], true);
+    let (first, last) = (
+        faces(&dir.path().join("out/obj/cloth_0001.obj")),
+        faces(&dir.path().join("out/obj/cloth_0060.obj")),
+    );
+    assert_eq!(first, 2 * 19 * 19, "frame 1 is whole");
+    assert!(
+        last < first,
+        "torn faces must leave the mesh: {first} → {last}"
+    );
+    // The glTF holds the last topology.
+    let (meshes, _) = drape::export::gltf::read(&dir.path().join("out/scene.glb")).unwrap();
+    assert_eq!(meshes[0].triangles.len(), last);
+    eprintln!("{torn} springs tore; faces {first} → {last}");
+}
+
+#[test]
+fn without_tearing_the_same_pull_overstretches_the_cloth() {
+    let dir = common::temp_dir();
+    common::write(dir.path(), "scene.json", &scene(false));
+    let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
+    assert_eq!(out.status.code(), Some(1), "{}", common::stderr(&out));
+    assert!(
+        common::stderr(&out).contains("stretched"),
+        "{}",
+        common::stderr(&out)
+    );
+}
+
+#[test]
+fn the_gpu_backend_refuses_tearing() {
+    let dir = common::temp_dir();
+    let text = scene(true).replace("\"cpu\"", "\"gpu\"");
+    common::write(dir.path(), "scene.json", &text);
+    let out = common::drape(
+        dir.path(),
+        &["bake", "scene.json", "--out", "out", "--frames", "2"],
+    );
+    assert!(!out.status.success());
+    assert!(
+        common::stderr(&out).contains("tearing"),
+        "{}",
+        common::stderr(&out)
+    );
+}
