@@ -256,7 +256,15 @@ fn the_khronos_validator_finds_no_errors() {
     assert!(out.status.success(), "{}", common::stderr(&out));
     let with_body = dir.path().join("m/mannequin.gltf");
     assert_eq!(gltf_frames(&with_body).len(), 2, "cloth and body");
-    for file in [sheet_and_rope, with_body] {
+    // A third: a cloth that tears (faces leave the mesh, some vertices end up in none).
+    let tearing = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tearing.json");
+    let out = common::drape(
+        dir.path(),
+        &["bake", tearing.to_str().unwrap(), "--out", "t", "--frames", "60"],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let torn = dir.path().join("t/tearing.glb");
+    for file in [sheet_and_rope, with_body, torn] {
         let run = std::process::Command::new("node")
             .arg(&script)
             .arg(&file)

@@ -110,11 +110,17 @@ impl Builder {
         self.accessors.len() - 1
     }
 
-    fn indices(&mut self, triangles: &[[u32; 3]], vertices: usize) -> usize {
+    fn indices(&mut self, triangles: &[[u32; 3]]) -> usize {
         let view = self.view(bytemuck::cast_slice(triangles), Some(ELEMENT_ARRAY_BUFFER));
+        // The indices actually used (a torn garment may leave some vertices out).
+        let all = triangles.iter().flatten();
+        let (lo, hi) = (
+            all.clone().min().copied().unwrap_or(0),
+            all.max().copied().unwrap_or(0),
+        );
         self.accessors.push(json!({
             "bufferView": view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3,
-            "type": "SCALAR", "min": [0], "max": [vertices.saturating_sub(1)]
+            "type": "SCALAR", "min": [lo], "max": [hi]
         }));
         self.accessors.len() - 1
     }
@@ -184,7 +190,7 @@ pub fn document(meshes: &[AnimatedMesh], fps: f32, generator: &str) -> Result<(V
         if lines {
             primitive["mode"] = json!(3); // LINE_STRIP
         } else {
-            primitive["indices"] = json!(b.indices(&mesh.triangles, base.len()));
+            primitive["indices"] = json!(b.indices(&mesh.triangles));
         }
         let mut gltf_mesh = json!({ "name": mesh.name, "primitives": [primitive] });
         if !targets.is_empty() {
