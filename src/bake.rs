@@ -382,9 +382,12 @@ fn run(
         }
         let baked = report.frames_baked as usize;
         for mut c in character_meshes {
-            // Character frame k is the pose at garment frame k (frame 0 is the start).
-            c.frames = c.frames.into_iter().skip(1).take(baked).collect();
-            if c.frames.len() == baked {
+            // Character frame k is the pose at garment frame k (frame 0 is the start); a static
+            // mesh (one frame, like a stool) stays one frame.
+            if c.frames.len() > 1 {
+                c.frames = c.frames.into_iter().skip(1).take(baked).collect();
+            }
+            if c.frames.len() == baked || c.frames.len() == 1 {
                 meshes.push(c);
             }
         }

@@ -260,7 +260,14 @@ fn the_khronos_validator_finds_no_errors() {
     let tearing = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tearing.json");
     let out = common::drape(
         dir.path(),
-        &["bake", tearing.to_str().unwrap(), "--out", "t", "--frames", "60"],
+        &[
+            "bake",
+            tearing.to_str().unwrap(),
+            "--out",
+            "t",
+            "--frames",
+            "60",
+        ],
     );
     assert!(out.status.success(), "{}", common::stderr(&out));
     let torn = dir.path().join("t/tearing.glb");

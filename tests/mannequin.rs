@@ -23,7 +23,7 @@ fn clip(name: &str) -> Character {
 #[test]
 fn committed_frames_match_the_generator() {
     let files = mannequin::files();
-    assert_eq!(files.len(), 19 + 25 + 1);
+    assert_eq!(files.len(), 19 + 25 + 49 + 1);
     for (name, text) in files {
         let committed = std::fs::read_to_string(Path::new(DIR).join(&name))
             .unwrap_or_else(|e| panic!("{DIR}/{name}: {e}; run `drape mannequin` and commit"));

@@ -1,5 +1,6 @@
-//! drape's own mannequin: a 1.8 m humanoid of capsules on a small skeleton, with two clips,
-//! raising the arms and sitting down on a stool, so scenes need nothing outside the repository.
+//! drape's own mannequin: a 1.8 m humanoid of capsules on a small skeleton, with three clips:
+//! raising the arms, sitting down on a stool, and scene P's stand-lift-sit, so scenes need
+//! nothing outside the repository.
 //!
 //! Each body part is a capsule rigidly attached to one bone (the joints overlap, so the surface
 //! has no gaps); clips are forward kinematics with smoothstep easing. `drape mannequin --out DIR`
@@ -13,7 +14,7 @@ use std::fmt::Write as _;
 pub const FPS: f32 = 12.0;
 
 /// The two clips: name and duration [s].
-pub const CLIPS: [(&str, f32); 2] = [("raise_arms", 1.5), ("sit", 2.0)];
+pub const CLIPS: [(&str, f32); 3] = [("raise_arms", 1.5), ("sit", 2.0), ("poncho", 4.0)];
 
 /// Seat height of the stool [m], its radius and the centre of its seat in the floor plane.
 pub const STOOL_HEIGHT: f32 = 0.37;
@@ -136,6 +137,19 @@ fn pose(clip: &str, t: f32) -> (Vec3, [Quat; 11]) {
                 -THIGH * theta.sin(),
             );
         }
+        "poncho" => {
+            // Scene P: stand while the poncho settles (0–0.6 s), lift the arms sideways to 80°
+            // and lower them (0.6–2.0 s), then sit on the stool (2.0–4.0 s).
+            let lift = (smoothstep((t - 0.6) / 0.7) - smoothstep((t - 1.3) / 0.7)).max(0.0);
+            let angle = (10.0 + 70.0 * lift).to_radians();
+            rot[3] = Quat::from_rotation_z(angle);
+            rot[5] = Quat::from_rotation_z(-angle);
+            let (sit_pelvis, sit_rot) = pose("sit", (t - 2.0).max(0.0));
+            for b in [1, 7, 8, 9, 10] {
+                rot[b] = sit_rot[b];
+            }
+            pelvis = sit_pelvis;
+        }
         _ => {}
     }
     (pelvis, rot)
@@ -198,7 +212,7 @@ fn capsule(p: &Part, vertices: &mut Vec<Vec3>, triangles: &mut Vec<[u32; 3]>, to
     }
 }
 
-/// The mannequin's mesh at time `t` of `clip` ("raise_arms" or "sit").
+/// The mannequin's mesh at time `t` of `clip` ("raise_arms", "sit" or "poncho").
 pub fn mesh(clip: &str, t: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let (pelvis, rot) = pose(clip, t);
     let bones = bone_transforms(pelvis, &rot);

@@ -21,7 +21,7 @@ pub enum Command {
     Bench(BenchArgs),
     /// Sample a character's collision shell over its frames and write it as a cache file.
     Shell(ShellArgs),
-    /// Write drape's procedural mannequin (clips raise_arms and sit) and its stool as OBJ frames.
+    /// Write drape's procedural mannequin (clips raise_arms, sit and poncho) and its stool as OBJ frames.
     Mannequin(MannequinArgs),
     /// Render preview images of an existing bake (its glTF) into BAKE_DIR/preview.
     Render(RenderArgs),
