@@ -184,20 +184,5 @@ fn bad_attachments_are_input_errors() {
 
 #[test]
 fn the_gpu_backend_refuses_attachments() {
-    let dir = common::temp_dir();
-    common::write(
-        dir.path(),
-        "scene.json",
-        &CURTAIN.replace("\"cpu\"", "\"gpu\""),
-    );
-    let out = common::drape(
-        dir.path(),
-        &["bake", "scene.json", "--out", "out", "--frames", "2"],
-    );
-    assert!(!out.status.success());
-    assert!(
-        common::stderr(&out).contains("attachments"),
-        "{}",
-        common::stderr(&out)
-    );
+    common::assert_gpu_refuses(CURTAIN, "attachments");
 }

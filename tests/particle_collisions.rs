@@ -122,18 +122,5 @@ fn a_cloth_folding_onto_itself_keeps_its_layers_apart() {
 
 #[test]
 fn the_gpu_backend_refuses_particle_collisions() {
-    let dir = common::temp_dir();
-    let text = two_cloths(true).replace("\"backend\": \"cpu\"", "\"backend\": \"gpu\"");
-    common::write(dir.path(), "scene.json", &text);
-    let out = common::drape(
-        dir.path(),
-        &["bake", "scene.json", "--out", "out", "--frames", "2"],
-    );
-    assert!(!out.status.success());
-    assert!(
-        common::stderr(&out).contains("particle collisions"),
-        "{}",
-        common::stderr(&out)
-    );
-    assert!(!dir.path().join("out").exists());
+    common::assert_gpu_refuses(&two_cloths(true), "particle collisions");
 }

@@ -68,17 +68,5 @@ fn without_tearing_the_same_pull_overstretches_the_cloth() {
 
 #[test]
 fn the_gpu_backend_refuses_tearing() {
-    let dir = common::temp_dir();
-    let text = scene(true).replace("\"cpu\"", "\"gpu\"");
-    common::write(dir.path(), "scene.json", &text);
-    let out = common::drape(
-        dir.path(),
-        &["bake", "scene.json", "--out", "out", "--frames", "2"],
-    );
-    assert!(!out.status.success());
-    assert!(
-        common::stderr(&out).contains("tearing"),
-        "{}",
-        common::stderr(&out)
-    );
+    common::assert_gpu_refuses(&scene(true), "tearing");
 }

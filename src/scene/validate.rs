@@ -226,23 +226,31 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
             }
             _ => {}
         }
-        for (k, key) in a.keyframes.iter().enumerate() {
-            let finite = key.time.is_finite()
-                && key
-                    .translation
-                    .iter()
-                    .chain(&key.rotation)
-                    .all(|v| v.is_finite());
-            let ordered = k == 0 || key.time > a.keyframes[k - 1].time;
-            if !finite || key.time < 0.0 || !ordered {
-                return Err((
-                    "attachments",
-                    format!("keyframe {k}: times must be finite, at least 0 and increasing"),
-                ));
-            }
-        }
+        check_keyframes(&a.keyframes, "attachments")?;
     }
     Ok(g.resolution.iter().map(|&n| n as u64).product())
+}
+
+/// Keyframes of a rigid motion: finite, times from 0 on and strictly increasing.
+fn check_keyframes(
+    keys: &[super::KeyframeSpec],
+    field: &'static str,
+) -> std::result::Result<(), (&'static str, String)> {
+    for (k, key) in keys.iter().enumerate() {
+        let finite = key.time.is_finite()
+            && key
+                .translation
+                .iter()
+                .chain(&key.rotation)
+                .all(|v| v.is_finite());
+        if !finite || key.time < 0.0 || (k > 0 && key.time <= keys[k - 1].time) {
+            return Err((
+                field,
+                format!("keyframe {k}: times must be finite, at least 0 and increasing"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Grid coordinates (pins, attachments): one per grid axis, inside the grid.
@@ -306,20 +314,7 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
     if let Some(r) = c.rotation {
         finite3(r).map_err(|r| ("rotation", r))?;
     }
-    for (k, key) in c.keyframes.iter().enumerate() {
-        let finite = key.time.is_finite()
-            && key
-                .translation
-                .iter()
-                .chain(&key.rotation)
-                .all(|v| v.is_finite());
-        if !finite || key.time < 0.0 || (k > 0 && key.time <= c.keyframes[k - 1].time) {
-            return Err((
-                "keyframes",
-                format!("keyframe {k}: times must be finite, at least 0 and increasing"),
-            ));
-        }
-    }
+    check_keyframes(&c.keyframes, "keyframes")?;
     match c.kind {
         ColliderKind::Plane => {
             if let Some(p) = c.point {
