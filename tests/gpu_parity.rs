@@ -40,6 +40,15 @@ fn max_distance(a: &Simulation, b: &Simulation) -> f32 {
         .fold(0.0, f32::max)
 }
 
+/// Particles of `sim` within 1 cm of collider `c`'s surface.
+fn touching(sim: &Simulation, c: &drape::collide::Collider) -> usize {
+    sim.state
+        .positions
+        .iter()
+        .filter(|q| c.distance(q.truncate()).0 < 0.01)
+        .count()
+}
+
 /// Largest relative difference between two residual histories.
 fn largest_gap(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -103,14 +112,8 @@ fn jacobi_pbd_and_the_sphere_match() {
             d <= 1e-5,
             "{kind:?}: positions differ by {d} m after 20 frames"
         );
-        let touching = gpu
-            .state
-            .positions
-            .iter()
-            .filter(|q| gpu.colliders[0].distance(q.truncate()).0 < 0.01)
-            .count();
         assert!(
-            touching > 0,
+            touching(&gpu, &gpu.colliders[0]) > 0,
             "the cloth should touch the sphere by frame 20"
         );
     }
@@ -136,14 +139,8 @@ fn boxes_and_capsules_match() {
     eprintln!("box and capsule: positions differ by {d:.2e} m after 20 frames");
     assert!(d <= 1e-5, "positions differ by {d} m after 20 frames");
     for (c, name) in gpu.colliders.iter().zip(["box", "capsule"]) {
-        let touching = gpu
-            .state
-            .positions
-            .iter()
-            .filter(|q| c.distance(q.truncate()).0 < 0.01)
-            .count();
         assert!(
-            touching > 0,
+            touching(&gpu, c) > 0,
             "the cloth should touch the {name} by frame 20"
         );
     }

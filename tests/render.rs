@@ -28,6 +28,17 @@ const SCENE: &str = r#"{
   "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }]
 }"#;
 
+/// Bakes SCENE with `extra` flags into `<temp>/out` and returns the temporary folder.
+fn bake_scene(extra: &[&str]) -> tempfile::TempDir {
+    let dir = common::temp_dir();
+    common::write(dir.path(), "scene.json", SCENE);
+    let mut args = vec!["bake", "scene.json", "--out", "out"];
+    args.extend_from_slice(extra);
+    let out = common::drape(dir.path(), &args);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    dir
+}
+
 /// Per-pixel comparison: mean absolute difference per channel and the share of pixels off by
 /// more than 48 in some channel.
 fn difference(a: &image::RgbaImage, b: &image::RgbaImage) -> (f64, f64) {
@@ -47,21 +58,7 @@ fn the_preview_matches_its_golden_image() {
     if gpu().is_none() {
         return;
     }
-    let dir = common::temp_dir();
-    common::write(dir.path(), "scene.json", SCENE);
-    let out = common::drape(
-        dir.path(),
-        &[
-            "bake",
-            "scene.json",
-            "--out",
-            "out",
-            "--preview",
-            "--preview-size",
-            "320x180",
-        ],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    let dir = bake_scene(&["--preview", "--preview-size", "320x180"]);
     let frame = image::open(dir.path().join("out/preview/frame_0040.png"))
         .unwrap()
         .to_rgba8();
@@ -141,13 +138,7 @@ fn drape_render_renders_an_existing_bake() {
     if gpu().is_none() {
         return;
     }
-    let dir = common::temp_dir();
-    common::write(dir.path(), "scene.json", SCENE);
-    let out = common::drape(
-        dir.path(),
-        &["bake", "scene.json", "--out", "out", "--frames", "3"],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    let dir = bake_scene(&["--frames", "3"]);
     assert!(!dir.path().join("out/preview").exists());
     let out = common::drape(
         dir.path(),
@@ -177,22 +168,7 @@ fn nothing_to_render_is_an_error_not_a_black_image() {
         .expect("an error");
     assert!(err.to_string().contains("nothing to render"), "{err}");
     // On the command line: a bake folder without a glTF.
-    let dir = common::temp_dir();
-    common::write(dir.path(), "scene.json", SCENE);
-    let out = common::drape(
-        dir.path(),
-        &[
-            "bake",
-            "scene.json",
-            "--out",
-            "out",
-            "--frames",
-            "2",
-            "--gltf",
-            "none",
-        ],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    let dir = bake_scene(&["--frames", "2", "--gltf", "none"]);
     let out = common::drape(dir.path(), &["render", "out"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(
