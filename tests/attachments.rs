@@ -149,6 +149,20 @@ fn particles_tied_to_the_skin_ride_it() {
 }
 
 #[test]
+fn particles_near_a_point_are_selected_by_distance() {
+    // A 1 m sheet of 11 × 11 (0.1 m spacing) at y = 1: a ball of 0.15 m at its corner holds the
+    // corner, its two axis neighbours and its diagonal neighbour (0.141 m), nothing else.
+    let scene = common::scene(
+        r#"{ "garments": [{ "resolution": [11, 11], "attachments": [{
+             "particles": { "near": [-0.5, 1, -0.5], "radius": 0.15 },
+             "keyframes": [{ "time": 0 }] }] }] }"#,
+    );
+    let g = drape::garment::build_all(&scene).remove(0);
+    assert_eq!(g.attached[0], vec![0, 1, 11, 12]);
+    assert_eq!(g.pins, vec![0, 1, 11, 12]);
+}
+
+#[test]
 fn bad_attachments_are_input_errors() {
     let dir = common::temp_dir();
     for (attachment, expect) in [
@@ -168,6 +182,10 @@ fn bad_attachments_are_input_errors() {
         (
             r#"{ "particles": [[40, 0]], "keyframes": [{ "time": 0 }] }"#,
             "outside",
+        ),
+        (
+            r#"{ "particles": { "near": [0, 1, 0], "radius": -1 }, "keyframes": [{ "time": 0 }] }"#,
+            "radius",
         ),
     ] {
         let text = format!(r#"{{ "garments": [{{ "attachments": [{attachment}] }}] }}"#);

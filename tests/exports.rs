@@ -271,7 +271,9 @@ fn the_khronos_validator_finds_no_errors() {
     );
     assert!(out.status.success(), "{}", common::stderr(&out));
     let torn = dir.path().join("t/tearing.glb");
-    for file in [sheet_and_rope, with_body, torn] {
+    // A fourth: a voxelized mesh garment (its own surface, embedded in the lattice).
+    let cushion = bake_cushion(dir.path(), "c");
+    for file in [sheet_and_rope, with_body, torn, cushion] {
         let run = std::process::Command::new("node")
             .arg(&script)
             .arg(&file)
@@ -293,6 +295,57 @@ fn the_khronos_validator_finds_no_errors() {
             file.display()
         );
     }
+}
+
+/// Bakes `scenes/cushion.json` for 10 frames into `dir/name`; returns its glb.
+fn bake_cushion(dir: &Path, name: &str) -> PathBuf {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cushion.json");
+    let out = common::drape(
+        dir,
+        &[
+            "bake",
+            scene.to_str().unwrap(),
+            "--out",
+            name,
+            "--frames",
+            "10",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    dir.join(name).join("cushion.glb")
+}
+
+#[test]
+fn a_mesh_garment_exports_its_own_surface_in_gltf_and_obj() {
+    let dir = common::temp_dir();
+    let glb = bake_cushion(dir.path(), "c");
+    let mesh =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("garments/cushion.obj"))
+            .unwrap();
+    let vertices = mesh.lines().filter(|l| l.starts_with("v ")).count();
+    let meshes = gltf_frames(&glb);
+    let (name, frames) = meshes
+        .iter()
+        .find(|m| m.0 == "cushion")
+        .expect("the cushion");
+    assert_eq!(name, "cushion");
+    assert_eq!(frames.len(), 10, "frames 1 to 10");
+    assert!(
+        frames.iter().all(|f| f.len() == vertices),
+        "the mesh's {vertices} vertices"
+    );
+    let obj = obj_positions(&dir.path().join("c/obj/cushion_0010.obj"));
+    let last = &frames[9];
+    assert_eq!(obj.len(), vertices);
+    let gap = obj
+        .iter()
+        .zip(last)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(gap < 1e-5, "OBJ and glTF frame 10 differ by {gap} m");
+    // The cushion fell: frame 10 is lower than frame 1.
+    let mean_y = |f: &[Vec3]| f.iter().map(|p| p.y).sum::<f32>() / f.len() as f32;
+    assert!(mean_y(last) < mean_y(&frames[0]) - 0.01);
 }
 
 #[test]

@@ -44,6 +44,8 @@ pub struct Mesh {
     pub weights: Vec<Vec<(u32, f32)>>,
     /// Nodes that place this mesh (rigid meshes only; a skinned mesh is placed by its bones).
     pub instances: Vec<usize>,
+    /// First texture coordinate set, one per vertex, when the file has one.
+    pub uvs: Option<Vec<[f32; 2]>>,
 }
 
 /// Keys of one animated node, times in seconds.
@@ -184,6 +186,11 @@ impl Asset {
                     .filter(|p| p.1 as usize == m)
                     .map(|p| p.0)
                     .collect(),
+                uvs: ai
+                    .texture_coords
+                    .first()
+                    .and_then(|set| set.as_ref())
+                    .map(|set| set.iter().map(|t| [t.x, t.y]).collect()),
             });
         }
         if meshes.iter().all(|m| m.triangles.is_empty()) {
@@ -300,6 +307,22 @@ impl Asset {
             }));
         }
         out
+    }
+
+    /// Texture coordinates over the vertices of [`Asset::pose`], when every mesh has them.
+    pub fn uvs(&self) -> Option<Vec<[f32; 2]>> {
+        let mut out = Vec::new();
+        for m in &self.meshes {
+            let copies = if m.bones.is_empty() {
+                m.instances.len()
+            } else {
+                1
+            };
+            for _ in 0..copies {
+                out.extend_from_slice(m.uvs.as_ref()?);
+            }
+        }
+        Some(out)
     }
 
     /// Triangles over the vertices of [`Asset::pose`].

@@ -35,7 +35,20 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         s.inner_iterations,
         s.omega
     );
-    for g in &garments {
+    for (spec, g) in scene.garments.iter().zip(&garments) {
+        if let Some(m) = &spec.placed {
+            let v = &m.voxels;
+            println!(
+                "  garment '{}' voxelizes {} ({} triangles, {}) at {} m: {} surface + {} interior cells",
+                g.name,
+                m.file,
+                m.triangles.len(),
+                if m.closed { "closed" } else { "open" },
+                v.spacing,
+                v.surface_cells,
+                v.interior_cells
+            );
+        }
         println!(
             "  garment '{}': {} particles ({} × {} × {}), {} pinned, springs: {} stretch, {} shear, {} bend; {} colours = ({} x + {} y + {} z) mod {}",
             g.name,

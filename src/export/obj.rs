@@ -61,7 +61,8 @@ pub fn frame_file_name(garment: &str, frame: u32) -> String {
     format!("{garment}_{frame:04}.obj")
 }
 
-/// Writes one garment's frame into `dir`; `positions` are the garment's particles in grid order.
+/// Writes one garment's frame into `dir`; `positions` are the garment's particles in grid order
+/// (a mesh garment writes its embedded surface).
 pub fn write_frame(
     dir: &Path,
     garment: &GarmentRange,
@@ -74,8 +75,10 @@ pub fn write_frame(
     Ok(path)
 }
 
-/// The OBJ text of one frame.
-pub fn frame_text(garment: &GarmentRange, frame: u32, positions: &[Vec3]) -> String {
+/// The OBJ text of one frame; `particles` are the garment's particles in grid order.
+pub fn frame_text(garment: &GarmentRange, frame: u32, particles: &[Vec3]) -> String {
+    let surface = garment.surface(particles);
+    let positions = &surface[..];
     let mut s = String::with_capacity(positions.len() * 96);
     let _ = writeln!(s, "# drape bake: garment {}, frame {frame}", garment.name);
     let _ = writeln!(s, "mtllib {MATERIALS}");

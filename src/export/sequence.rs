@@ -26,7 +26,7 @@ pub fn garment_meshes(garments: &[GarmentRange], frames: &[Vec<Vec3>]) -> Vec<An
             colour: [g.colour[0], g.colour[1], g.colour[2], 1.0],
             frames: frames
                 .iter()
-                .map(|f| f[g.export.clone()].to_vec())
+                .map(|f| g.surface(&f[g.export.clone()]))
                 .collect(),
             topology: Vec::new(),
         })

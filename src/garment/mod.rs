@@ -7,12 +7,14 @@
 
 pub mod coloring;
 pub mod stencil;
+pub mod voxel;
 
 pub use coloring::Colouring;
 pub use stencil::{SpringFamily, Stencil};
 
 use crate::scene::{GarmentKind, GarmentSpec, ParticleSelection};
 use glam::{EulerRot, Mat3, Vec3};
+use std::sync::Arc;
 
 /// A spring between two particles of one garment (grid-order indices).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,10 +45,13 @@ pub struct Garment {
     pub springs: Vec<Spring>,
     pub stencil: Stencil,
     pub colouring: Colouring,
-    /// Triangles (counter-clockwise seen from the garment's local +Y), grid-order indices.
+    /// Triangles of the exported surface: over the particles (grid order; counter-clockwise
+    /// seen from a sheet's local +Y), or over the vertices of `embedding` for a mesh garment.
     pub triangles: Vec<[u32; 3]>,
-    /// Texture coordinates, one per particle.
+    /// Texture coordinates, one per particle (or per embedded vertex).
     pub uvs: Vec<[f32; 2]>,
+    /// A mesh garment's own surface, carried by the particles around each vertex.
+    pub embedding: Option<Arc<Embedding>>,
     /// Half the cloth thickness [m]: the distance kept from collider surfaces.
     pub contact_radius: f32,
     /// Long-range attachments: (particle, pin, rest distance), grid-order indices.
@@ -59,6 +64,37 @@ pub struct Garment {
 
 /// Named regions an attachment can select.
 pub const REGIONS: [&str; 4] = ["top_edge", "bottom_edge", "corners", "hole_rim"];
+/// The regions that mean something on a voxelized mesh (its lattice corners are mostly empty
+/// and every surface particle borders empty cells).
+pub const MESH_REGIONS: [&str; 2] = ["top_edge", "bottom_edge"];
+
+/// Vertices as weighted sums of particles (compressed rows): vertex v is
+/// Σ weight[k] · particle[particle[k]] for k in start[v]..start[v + 1].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Embedding {
+    pub start: Vec<u32>,
+    pub particle: Vec<u32>,
+    pub weight: Vec<f32>,
+}
+
+impl Embedding {
+    /// Number of embedded vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    /// The embedded vertices for particle positions `particles` (grid order).
+    pub fn apply(&self, particles: &[Vec3]) -> Vec<Vec3> {
+        self.start
+            .windows(2)
+            .map(|r| {
+                (r[0] as usize..r[1] as usize)
+                    .map(|k| particles[self.particle[k] as usize] * self.weight[k])
+                    .sum()
+            })
+            .collect()
+    }
+}
 
 /// Garment colours by index when a scene gives none: cloth-like, distinct, not too saturated.
 pub const PALETTE: [[f32; 3]; 6] = [
@@ -89,17 +125,19 @@ impl Garment {
         let dims = match spec.kind {
             GarmentKind::Sheet => [spec.resolution[0], spec.resolution[1], 1],
             GarmentKind::Rope => [spec.resolution[0], 1, 1],
+            GarmentKind::Mesh => {
+                let placed = spec
+                    .placed
+                    .as_ref()
+                    .expect("mesh garments are placed on load");
+                return Garment::voxelized(name, spec, placed);
+            }
         };
         let spacing: Vec<f32> = (0..spec.size.len())
             .map(|a| spec.size[a] / (spec.resolution[a] - 1) as f32)
             .collect();
         let count = dims.iter().product::<u32>() as usize;
-        let rotation = Mat3::from_euler(
-            EulerRot::XYZ,
-            spec.rotation[0].to_radians(),
-            spec.rotation[1].to_radians(),
-            spec.rotation[2].to_radians(),
-        );
+        let rotation = rotation_of(spec.rotation);
         let centre = Vec3::from(spec.position);
         let mut positions = Vec::with_capacity(count);
         let mut uvs = Vec::with_capacity(count);
@@ -130,14 +168,7 @@ impl Garment {
         let mut pins: Vec<u32> = spec
             .pins
             .iter()
-            .map(|pin| {
-                let mut cell = [0u32; 3];
-                for (a, &c) in pin.iter().enumerate() {
-                    let n = dims[a] as i64;
-                    cell[a] = if c < 0 { (n + c) as u32 } else { c as u32 };
-                }
-                index_of(dims, cell)
-            })
+            .map(|pin| index_of(dims, resolve_cell(dims, pin)))
             .collect();
         pins.sort_unstable();
         pins.dedup();
@@ -153,6 +184,7 @@ impl Garment {
             colouring,
             triangles: sheet_triangles(dims),
             uvs,
+            embedding: None,
             contact_radius: spec.thickness * 0.5,
             tethers: Vec::new(),
             colour: spec.colour.unwrap_or(PALETTE[0]),
@@ -167,17 +199,7 @@ impl Garment {
                 .collect();
             garment.keep(&keep);
         }
-        garment.particle_mass = spec.mass / garment.particle_count() as f32;
-        garment.attached = spec
-            .attachments
-            .iter()
-            .map(|a| garment.select(&a.particles))
-            .collect();
-        garment
-            .pins
-            .extend(garment.attached.iter().flatten().copied());
-        garment.pins.sort_unstable();
-        garment.pins.dedup();
+        garment.finish(spec);
         if spec.tethers {
             let rest: Vec<Vec3> = garment
                 .cells
@@ -195,6 +217,82 @@ impl Garment {
         garment
     }
 
+    /// A voxelized mesh garment: particles at the occupied cells of `placed`, axis (and shear,
+    /// bend) springs between them, the mesh's own surface embedded for export.
+    fn voxelized(name: String, spec: &GarmentSpec, placed: &voxel::PlacedMesh) -> Garment {
+        let voxels = &placed.voxels;
+        let dims = voxels.dims;
+        let count = dims.iter().product::<u32>() as usize;
+        let h = voxels.spacing;
+        let stencil = Stencil::new(dims, spec.stiffness.shear > 0.0, spec.stiffness.bend > 0.0);
+        let colouring = Colouring::derive(&stencil);
+        let cells: Vec<[u32; 3]> = (0..count as u32).map(|k| cell_of(dims, k)).collect();
+        let mut pins: Vec<u32> = spec
+            .pins
+            .iter()
+            .map(|pin| index_of(dims, resolve_cell(dims, pin)))
+            .collect();
+        pins.sort_unstable();
+        pins.dedup();
+        let mut garment = Garment {
+            name,
+            dims,
+            positions: cells.iter().map(|&c| voxels.centre(c)).collect(),
+            cells,
+            particle_mass: 0.0,
+            pins,
+            springs: build_springs(dims, &stencil, &[h, h, h], &spec.stiffness),
+            stencil,
+            colouring,
+            triangles: Vec::new(),
+            uvs: Vec::new(),
+            embedding: None,
+            contact_radius: spec.thickness * 0.5,
+            tethers: Vec::new(),
+            colour: spec.colour.unwrap_or(PALETTE[0]),
+            attached: Vec::new(),
+        };
+        garment.keep(&voxels.occupied);
+        // Dense cell → particle, now that the empty cells are gone.
+        let mut particle_of = vec![u32::MAX; count];
+        for (i, c) in garment.cells.iter().enumerate() {
+            particle_of[index_of(dims, *c) as usize] = i as u32;
+        }
+        let mut embedding = Embedding {
+            start: vec![0],
+            particle: Vec::new(),
+            weight: Vec::new(),
+        };
+        for &v in &placed.vertices {
+            for (cell, w) in voxels.embed(v) {
+                embedding.particle.push(particle_of[cell]);
+                embedding.weight.push(w);
+            }
+            embedding.start.push(embedding.particle.len() as u32);
+        }
+        garment.triangles = placed.triangles.clone();
+        garment.uvs = placed.uvs.clone();
+        garment.embedding = Some(Arc::new(embedding));
+        garment.finish(spec);
+        if spec.tethers {
+            garment.tethers = lattice_tethers(&garment);
+        }
+        garment
+    }
+
+    /// Spreads the mass and pins the attached particles.
+    fn finish(&mut self, spec: &GarmentSpec) {
+        self.particle_mass = spec.mass / self.particle_count() as f32;
+        self.attached = spec
+            .attachments
+            .iter()
+            .map(|a| self.select(&a.particles))
+            .collect();
+        self.pins.extend(self.attached.iter().flatten().copied());
+        self.pins.sort_unstable();
+        self.pins.dedup();
+    }
+
     /// The particles a selection names (grid order, sorted): a region of [`REGIONS`] or grid
     /// coordinates (negative from the end; cells cut away by a hole are skipped).
     pub fn select(&self, selection: &ParticleSelection) -> Vec<u32> {
@@ -209,15 +307,14 @@ impl Garment {
         let mut out: Vec<u32> = match selection {
             ParticleSelection::Cells(cells) => cells
                 .iter()
-                .filter_map(|c| {
-                    let mut cell = [0u32; 3];
-                    for (a, &v) in c.iter().enumerate() {
-                        let n = self.dims[a] as i64;
-                        cell[a] = if v < 0 { (n + v) as u32 } else { v as u32 };
-                    }
-                    index_of_cell(cell)
-                })
+                .filter_map(|c| index_of_cell(resolve_cell(self.dims, c)))
                 .collect(),
+            ParticleSelection::Near(n) => {
+                let point = Vec3::from(n.near);
+                (0..self.positions.len() as u32)
+                    .filter(|&i| self.positions[i as usize].distance(point) <= n.radius)
+                    .collect()
+            }
             ParticleSelection::Region(region) => {
                 let n = self.positions.len() as u32;
                 let ys = || self.positions.iter().map(|p| p.y);
@@ -331,6 +428,26 @@ pub fn build_all(scene: &crate::scene::Scene) -> Vec<Garment> {
         .collect()
 }
 
+/// The lattice cell grid coordinates name (negative from the end; validated before).
+pub fn resolve_cell(dims: [u32; 3], coords: &[i64]) -> [u32; 3] {
+    let mut cell = [0u32; 3];
+    for (a, &c) in coords.iter().enumerate() {
+        let n = dims[a] as i64;
+        cell[a] = if c < 0 { (n + c) as u32 } else { c as u32 };
+    }
+    cell
+}
+
+/// Rotation from Euler angles in degrees, applied X, then Y, then Z.
+pub fn rotation_of(degrees: [f32; 3]) -> Mat3 {
+    Mat3::from_euler(
+        EulerRot::XYZ,
+        degrees[0].to_radians(),
+        degrees[1].to_radians(),
+        degrees[2].to_radians(),
+    )
+}
+
 /// Lattice cell of grid-order index `k` (x fastest).
 pub fn cell_of(dims: [u32; 3], k: u32) -> [u32; 3] {
     [
@@ -419,6 +536,54 @@ fn build_tethers(rest: &[Vec3], pins: &[u32]) -> Vec<Tether> {
         }
     }
     tethers
+}
+
+/// Tethers of a voxelized garment: each free particle to its nearest pin along the lattice's
+/// stretch springs (multi-source Dijkstra), at that path's length. A path along the lattice is
+/// never shorter than the cloth's geodesic, so the tether never holds the cloth tighter than
+/// its rest shape allows, whatever the mesh's curvature (a straight-line rest distance would).
+fn lattice_tethers(garment: &Garment) -> Vec<Tether> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let n = garment.particle_count();
+    let mut neighbours: Vec<Vec<(u32, f32)>> = vec![Vec::new(); n];
+    for s in garment
+        .springs
+        .iter()
+        .filter(|s| s.family == SpringFamily::Stretch)
+    {
+        neighbours[s.a as usize].push((s.b, s.rest));
+        neighbours[s.b as usize].push((s.a, s.rest));
+    }
+    let mut best = vec![(f32::INFINITY, u32::MAX); n];
+    let mut heap = BinaryHeap::new();
+    for &p in &garment.pins {
+        best[p as usize] = (0.0, p);
+        heap.push((Reverse(0u64), p));
+    }
+    // Distances as ordered bits (non-negative floats order like their bit patterns).
+    while let Some((Reverse(bits), i)) = heap.pop() {
+        let d = f64::from_bits(bits) as f32;
+        if d > best[i as usize].0 {
+            continue;
+        }
+        for &(j, len) in &neighbours[i as usize] {
+            let candidate = d + len;
+            if candidate < best[j as usize].0 {
+                best[j as usize] = (candidate, best[i as usize].1);
+                heap.push((Reverse((candidate as f64).to_bits()), j));
+            }
+        }
+    }
+    (0..n as u32)
+        .filter(|k| garment.pins.binary_search(k).is_err())
+        .filter(|&k| best[k as usize].1 != u32::MAX)
+        .map(|k| Tether {
+            particle: k,
+            pin: best[k as usize].1,
+            rest: best[k as usize].0,
+        })
+        .collect()
 }
 
 /// Two triangles per grid quad of a sheet; none for a rope.

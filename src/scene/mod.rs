@@ -7,7 +7,7 @@
 
 mod validate;
 
-pub use validate::validate;
+pub use validate::{validate, MAX_PARTICLES};
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -175,6 +175,22 @@ pub enum GarmentKind {
     Sheet,
     /// A rope: `resolution` [n] particles, `size` [length] metres along local +X.
     Rope,
+    /// Any triangle mesh (`mesh`), voxelized at `spacing`: a thin sheet becomes one layer of
+    /// particles, a closed solid is filled.
+    Mesh,
+}
+
+/// Whether a mesh garment's inside is filled with particles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FillMode {
+    /// Fill closed meshes (every edge shared by two triangles), not open ones.
+    #[default]
+    Auto,
+    /// Fill what the mesh encloses (by winding number), even if it has gaps.
+    Solid,
+    /// Only the cells the surface passes through.
+    Surface,
 }
 
 /// One garment: a particle grid with distance constraints.
@@ -214,6 +230,19 @@ pub struct GarmentSpec {
     /// Particles that follow animated targets (a character's skin, or keyframed rigid motion).
     /// They are pinned: the solver moves the rest of the cloth after them. Default none.
     pub attachments: Vec<AttachmentSpec>,
+    /// Mesh garments: the mesh file (any format assimp reads), relative to the scene's folder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<String>,
+    /// Mesh garments: lattice spacing [m]. Default: the longest side of the placed mesh / 31.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<f32>,
+    /// Mesh garments: scale from file units to metres. Default 1.
+    pub scale: f32,
+    /// Mesh garments: fill the inside. Default `"auto"`.
+    pub fill: FillMode,
+    /// Mesh garments: the mesh as read and voxelized when the scene was loaded.
+    #[serde(skip)]
+    pub placed: Option<std::sync::Arc<crate::garment::voxel::PlacedMesh>>,
     /// Long-range attachments (Kim, Chentanez and Müller 2012): every free particle stays within
     /// its rest distance of its two nearest pins, so a pinned cloth cannot stretch away from its
     /// pins however few iterations the solver runs. Default true; no effect without pins.
@@ -239,6 +268,11 @@ impl Default for GarmentSpec {
             attachments: Vec::new(),
             tear_strain: None,
             tethers: true,
+            mesh: None,
+            spacing: None,
+            scale: 1.0,
+            fill: FillMode::Auto,
+            placed: None,
         }
     }
 }
@@ -272,6 +306,16 @@ pub struct AttachmentSpec {
 pub enum ParticleSelection {
     Region(String),
     Cells(Vec<Vec<i64>>),
+    /// Every particle within a distance of a point at rest.
+    Near(NearSelection),
+}
+
+/// Particles by proximity: every particle within `radius` [m] of `near` at rest.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct NearSelection {
+    pub near: [f32; 3],
+    pub radius: f32,
 }
 
 /// A key of a rigid motion: at `time`, translate by `translation` after rotating by `rotation`
@@ -493,15 +537,14 @@ impl Default for OutputSpec {
 }
 
 impl Scene {
-    /// Reads, parses and validates a scene file.
+    /// Reads, parses and validates a scene file (and the garment meshes it names).
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
-        let mut scene = Scene::parse(&text, &path.display().to_string())?;
-        scene.base_dir = match path.parent() {
+        let base_dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => std::path::PathBuf::from("."),
         };
-        Ok(scene)
+        Scene::parse_in(&text, &path.display().to_string(), &base_dir)
     }
 
     /// Where character `index`'s file is, resolved against the scene's folder.
@@ -514,8 +557,22 @@ impl Scene {
         Scene::parse(DEFAULT_SCENE, DEFAULT_SCENE_FILE).expect("the embedded scene is valid")
     }
 
-    /// Parses and validates scene JSON; `file` names the source in error messages.
+    /// Parses and validates scene JSON; `file` names the source in error messages. Garment
+    /// meshes are read relative to the working folder.
     pub fn parse(text: &str, file: &str) -> Result<Scene> {
+        Scene::parse_in(text, file, Path::new("."))
+    }
+
+    /// Parses and validates scene JSON whose relative paths start at `base_dir`, then reads and
+    /// voxelizes its garment meshes.
+    pub fn parse_in(text: &str, file: &str, base_dir: &Path) -> Result<Scene> {
+        let mut scene = Scene::parse_only(text, file)?;
+        scene.base_dir = base_dir.to_path_buf();
+        crate::garment::voxel::place_scene_meshes(&mut scene, file)?;
+        Ok(scene)
+    }
+
+    fn parse_only(text: &str, file: &str) -> Result<Scene> {
         let mut de = serde_json::Deserializer::from_str(text);
         let scene: Scene = serde_path_to_error::deserialize(&mut de).map_err(|e| {
             let path = e.path().to_string();

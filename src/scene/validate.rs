@@ -1,6 +1,6 @@
 //! Rejects impossible scene values, naming the field (as a JSON path) and the reason.
 
-use super::{ColliderKind, GarmentKind, GarmentSpec, Scene};
+use super::{ColliderKind, FillMode, GarmentKind, GarmentSpec, ParticleSelection, Scene};
 use crate::error::{Error, Result};
 
 /// The most particles one scene may hold (about 3 GiB of solver state): a guard against a typo
@@ -141,12 +141,15 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
     let axes = match g.kind {
         GarmentKind::Sheet => 2,
         GarmentKind::Rope => 1,
+        GarmentKind::Mesh => return validate_mesh_garment(g).map(|()| 0),
     };
-    if let Some(c) = g.colour {
-        if !c.iter().all(|v| (0.0..=1.0).contains(v)) {
-            return Err(("colour", format!("{c:?}: each channel must lie in 0…1")));
-        }
+    if g.mesh.is_some() || g.spacing.is_some() || g.scale != 1.0 || g.fill != FillMode::Auto {
+        return Err((
+            "mesh",
+            "mesh, spacing, scale and fill belong to mesh garments (kind \"mesh\")".into(),
+        ));
     }
+    check_common(g)?;
     let kind = format!("{:?}", g.kind).to_lowercase();
     if g.resolution.len() != axes {
         return Err((
@@ -169,15 +172,6 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
     for &s in &g.size {
         positive(s).map_err(|r| ("size", r))?;
     }
-    positive(g.mass).map_err(|r| ("mass", r))?;
-    finite3(g.position).map_err(|r| ("position", r))?;
-    finite3(g.rotation).map_err(|r| ("rotation", r))?;
-    positive(g.initial_stretch).map_err(|r| ("initial_stretch", r))?;
-    non_negative(g.thickness).map_err(|r| ("thickness", r))?;
-    positive(g.stiffness.stretch).map_err(|r| ("stiffness.stretch", r))?;
-    non_negative(g.stiffness.shear).map_err(|r| ("stiffness.shear", r))?;
-    non_negative(g.stiffness.bend).map_err(|r| ("stiffness.bend", r))?;
-    non_negative(g.hole_radius).map_err(|r| ("hole_radius", r))?;
     if g.hole_radius > 0.0 {
         if g.kind != GarmentKind::Sheet {
             return Err((
@@ -201,21 +195,82 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
         positive(t).map_err(|r| ("tear_strain", r))?;
     }
     for a in &g.attachments {
+        if let ParticleSelection::Cells(cells) = &a.particles {
+            check_cells(cells, axes, &g.resolution, "attachments")?
+        }
+    }
+    check_attachments(g, &crate::garment::REGIONS)?;
+    Ok(g.resolution.iter().map(|&n| n as u64).product())
+}
+
+/// The fields every kind of garment has.
+fn check_common(g: &GarmentSpec) -> std::result::Result<(), (&'static str, String)> {
+    if let Some(c) = g.colour {
+        if !c.iter().all(|v| (0.0..=1.0).contains(v)) {
+            return Err(("colour", format!("{c:?}: each channel must lie in 0…1")));
+        }
+    }
+    positive(g.mass).map_err(|r| ("mass", r))?;
+    finite3(g.position).map_err(|r| ("position", r))?;
+    finite3(g.rotation).map_err(|r| ("rotation", r))?;
+    positive(g.initial_stretch).map_err(|r| ("initial_stretch", r))?;
+    non_negative(g.thickness).map_err(|r| ("thickness", r))?;
+    positive(g.stiffness.stretch).map_err(|r| ("stiffness.stretch", r))?;
+    non_negative(g.stiffness.shear).map_err(|r| ("stiffness.shear", r))?;
+    non_negative(g.stiffness.bend).map_err(|r| ("stiffness.bend", r))?;
+    non_negative(g.hole_radius).map_err(|r| ("hole_radius", r))?;
+    Ok(())
+}
+
+/// Checks a mesh garment's own fields (its cells are checked once it is voxelized).
+fn validate_mesh_garment(g: &GarmentSpec) -> std::result::Result<(), (&'static str, String)> {
+    if g.mesh.as_deref().is_none_or(str::is_empty) {
+        return Err(("mesh", "a mesh garment needs a mesh file".into()));
+    }
+    if let Some(s) = g.spacing {
+        positive(s).map_err(|r| ("spacing", r))?;
+    }
+    positive(g.scale).map_err(|r| ("scale", r))?;
+    check_common(g)?;
+    if g.hole_radius > 0.0 {
+        return Err(("hole_radius", "only sheets have holes, not a mesh".into()));
+    }
+    if g.initial_stretch != 1.0 {
+        return Err((
+            "initial_stretch",
+            "a mesh garment starts at its rest shape (scale it with `scale`)".into(),
+        ));
+    }
+    if g.tear_strain.is_some() {
+        return Err((
+            "tear_strain",
+            "mesh garments cannot tear yet: their exported surface is embedded in the lattice"
+                .into(),
+        ));
+    }
+    check_attachments(g, &crate::garment::MESH_REGIONS)
+}
+
+/// Regions, proximity selections and targets of a garment's attachments.
+fn check_attachments(
+    g: &GarmentSpec,
+    regions: &[&str],
+) -> std::result::Result<(), (&'static str, String)> {
+    for a in &g.attachments {
         match &a.particles {
-            super::ParticleSelection::Region(r) => {
-                if !crate::garment::REGIONS.contains(&r.as_str()) {
+            ParticleSelection::Region(r) => {
+                if !regions.contains(&r.as_str()) {
                     return Err((
                         "attachments",
-                        format!(
-                            "unknown region {r:?} (known: {})",
-                            crate::garment::REGIONS.join(", ")
-                        ),
+                        format!("unknown region {r:?} (known: {})", regions.join(", ")),
                     ));
                 }
             }
-            super::ParticleSelection::Cells(cells) => {
-                check_cells(cells, axes, &g.resolution, "attachments")?
+            ParticleSelection::Near(n) => {
+                finite3(n.near).map_err(|r| ("attachments", format!("near: {r}")))?;
+                positive(n.radius).map_err(|r| ("attachments", format!("radius: {r}")))?;
             }
+            ParticleSelection::Cells(_) => {}
         }
         match (&a.character, a.keyframes.is_empty()) {
             (Some(_), false) | (None, true) => {
@@ -228,7 +283,7 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
         }
         check_keyframes(&a.keyframes, "attachments")?;
     }
-    Ok(g.resolution.iter().map(|&n| n as u64).product())
+    Ok(())
 }
 
 /// Keyframes of a rigid motion: finite, times from 0 on and strictly increasing.

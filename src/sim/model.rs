@@ -76,15 +76,29 @@ pub struct GarmentRange {
     /// Export-order indices of this garment's particles.
     pub export: Range<usize>,
     pub dims: [u32; 3],
-    /// Triangles in garment-local grid indices.
+    /// Triangles of the exported surface: garment-local grid indices, or vertices of
+    /// `embedding` for a mesh garment.
     pub triangles: Vec<[u32; 3]>,
     pub uvs: Vec<[f32; 2]>,
+    /// A mesh garment's surface, carried by its particles.
+    pub embedding: Option<std::sync::Arc<crate::garment::Embedding>>,
     pub colours: u32,
     pub stretch_springs: usize,
     pub shear_springs: usize,
     pub bend_springs: usize,
     /// Colour in exports and previews, linear RGB.
     pub colour: [f32; 3],
+}
+
+impl GarmentRange {
+    /// The exported surface's vertices from this garment's particles (grid order): the
+    /// particles themselves, or a mesh garment's embedded vertices.
+    pub fn surface(&self, particles: &[glam::Vec3]) -> Vec<glam::Vec3> {
+        match &self.embedding {
+            Some(e) => e.apply(particles),
+            None => particles.to_vec(),
+        }
+    }
 }
 
 /// Static simulation data (everything but positions), in storage order.
@@ -135,6 +149,7 @@ impl Model {
                 dims: g.dims,
                 triangles: g.triangles.clone(),
                 uvs: g.uvs.clone(),
+                embedding: g.embedding.clone(),
                 colours: g.colour_count(),
                 stretch_springs: g.spring_count(SpringFamily::Stretch),
                 shear_springs: g.spring_count(SpringFamily::Shear),
