@@ -138,6 +138,8 @@ pub fn load_characters(
         let frames = scene.frames as usize + 1;
         let character = Character::load(&path, &options, scene.fps, frames)?;
         let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
+        // Normals ride the skin with the shell, when one shell serves every frame.
+        let mut normals = Vec::new();
         let (positions, cache) = if character.same_topology() {
             let files = sequence_files(&path)?;
             let hash = input_hash(
@@ -148,8 +150,8 @@ pub fn load_characters(
                 character.frames.len(),
             )?;
             let file = cache_dir.join(format!("{hash:016x}.shell"));
-            match ShellCache::read(&file) {
-                Ok(c) if c.inputs == hash => (c.frames, "reused"),
+            let (c, how) = match ShellCache::read(&file) {
+                Ok(c) if c.inputs == hash => (c, "reused"),
                 _ => {
                     let c = ShellCache::build(&character, spec.radius, hash)?;
                     let written = std::fs::create_dir_all(cache_dir)
@@ -158,9 +160,16 @@ pub fn load_characters(
                     if let Err(e) = written {
                         warnings.push(format!("character {name}: shell cache not written: {e}"));
                     }
-                    (c.frames, "built")
+                    (c, "built")
                 }
-            }
+            };
+            let triangles = character.triangles_of(0);
+            normals = character
+                .frames
+                .iter()
+                .map(|f| c.shell.normals(f, triangles))
+                .collect();
+            (c.frames, how)
         } else {
             (
                 character.shell_frames(spec.radius),
@@ -196,8 +205,10 @@ pub fn load_characters(
             ));
             None
         };
+        let mut shell = ShellCollider::new(name, spec.radius, spec.friction, positions);
+        shell.normals = normals;
         out.push(LoadedCharacter {
-            shell: ShellCollider::new(name, spec.radius, spec.friction, positions),
+            shell,
             report,
             mesh,
         });
@@ -224,7 +235,8 @@ fn run(
     let mut characters = Vec::new();
     let cache_dir = options.shell_cache.clone().unwrap_or_else(shell_cache_dir);
     let mut character_meshes = Vec::new();
-    for c in load_characters(scene, &cache_dir, &mut warnings)? {
+    for mut c in load_characters(scene, &cache_dir, &mut warnings)? {
+        c.shell.swept = scene.swept_collisions;
         sim.shells.push(c.shell);
         characters.push(c.report);
         character_meshes.extend(c.mesh);

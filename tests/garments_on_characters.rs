@@ -1,6 +1,8 @@
 //! Garments against characters (CPU backend): cloth dropped on the mannequin's stool and on the
 //! mannequin raising its arms never sinks more than half a shell particle radius into the body's
-//! particle layer; the shell cache is reused by the second bake; the GPU backend says it cannot.
+//! particle layer; the shell cache is reused by the second bake; a ball thrown through a curtain
+//! faster than its shell is thick catches (and tears) the cloth with the swept test, and
+//! swallows it without; the GPU backend says it cannot.
 
 mod common;
 
@@ -91,4 +93,104 @@ fn characters_are_cpu_only_so_far() {
         "{}",
         common::stderr(&out)
     );
+}
+
+/// A UV sphere of `radius` around `centre` as OBJ text (outward winding).
+fn ball_obj(centre: glam::Vec3, radius: f32) -> String {
+    let (rings, segments) = (12, 24);
+    let mut text = String::new();
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for k in 0..segments {
+            let phi = std::f32::consts::TAU * k as f32 / segments as f32;
+            let p = centre
+                + radius
+                    * glam::Vec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.cos(),
+                        -theta.sin() * phi.sin(),
+                    );
+            text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+    }
+    let at = |r: u32, k: u32| r * segments + k % segments + 1;
+    for r in 0..rings {
+        for k in 0..segments {
+            let (a, b, c, d) = (at(r, k), at(r, k + 1), at(r + 1, k), at(r + 1, k + 1));
+            text += &format!("f {a} {c} {d}\nf {a} {d} {b}\n");
+        }
+    }
+    text
+}
+
+#[test]
+fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_without_it() {
+    // A 0.15 m ball hits a curtain pinned at its top corners at 12 m/s and stops 0.2 m past it:
+    // 2 cm per substep relative to the cloth, more than the shell's contact reach (1 cm + the
+    // cloth's 0.25 cm), so the end-point push alone lets cloth into the ball. With the swept
+    // test the cloth is caught on the ball's surface and tears instead.
+    let dir = common::temp_dir();
+    let frames_dir = dir.path().join("ball");
+    std::fs::create_dir(&frames_dir).unwrap();
+    let centre = |k: u32| glam::Vec3::new(0.0, 1.0, -0.6 + 0.2 * k.min(4) as f32);
+    for k in 0..=8 {
+        std::fs::write(
+            frames_dir.join(format!("ball_{k:04}.obj")),
+            ball_obj(centre(k), 0.15),
+        )
+        .unwrap();
+    }
+    let inside_per_frame = |swept: bool| -> (Vec<usize>, u64) {
+        let text = format!(
+            r#"{{ "frames": 8, "backend": "cpu", "gravity": [0, 0, 0], "swept_collisions": {swept},
+                  "garments": [{{ "name": "curtain", "resolution": [31, 31], "size": [1, 1],
+                                  "position": [0, 1, 0], "rotation": [90, 0, 0], "pins": [[0, 0], [-1, 0]],
+                                  "stiffness": {{ "stretch": 2000 }}, "tear_strain": 0.6 }}],
+                  "characters": [{{ "name": "ball", "file": "ball", "sequence_fps": 60, "friction": 0 }}],
+                  "output": {{ "gltf": "none" }} }}"#
+        );
+        let name = format!("swept_{swept}");
+        common::write(dir.path(), &format!("{name}.json"), &text);
+        let out = common::drape(
+            dir.path(),
+            &["bake", &format!("{name}.json"), "--out", &name],
+        );
+        assert!(out.status.success(), "{}", common::stderr(&out));
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(&name).join("report.json")).unwrap(),
+        )
+        .unwrap();
+        let inside = (1..=8)
+            .map(|k| {
+                let obj = dir.path().join(format!("{name}/obj/curtain_{k:04}.obj"));
+                std::fs::read_to_string(obj)
+                    .unwrap()
+                    .lines()
+                    .filter_map(|l| l.strip_prefix("v "))
+                    .map(|l| {
+                        let v: Vec<f32> =
+                            l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                        glam::Vec3::new(v[0], v[1], v[2])
+                    })
+                    .filter(|p| p.distance(centre(k)) < 0.15)
+                    .count()
+            })
+            .collect();
+        (inside, report["torn_springs"].as_u64().unwrap())
+    };
+    let (swept, torn_swept) = inside_per_frame(true);
+    let (plain, torn_plain) = inside_per_frame(false);
+    eprintln!(
+        "particles inside the ball per frame: swept {swept:?} ({torn_swept} springs torn), \
+         end point only {plain:?} ({torn_plain} torn)"
+    );
+    // Measured: at most 9 of 961 particles in the ball in one frame with the swept test (a few
+    // slip past where the ball's silhouette grazes the cloth), 42 without.
+    let (most_swept, most_plain) = (*swept.iter().max().unwrap(), *plain.iter().max().unwrap());
+    assert!(most_plain > 20, "end point only: {plain:?}");
+    assert!(
+        4 * most_swept <= most_plain,
+        "swept {swept:?}, end point only {plain:?}"
+    );
+    assert!(torn_swept > torn_plain, "the caught cloth should tear");
 }

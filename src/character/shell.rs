@@ -157,6 +157,18 @@ impl Shell {
             .collect()
     }
 
+    /// Unit normals of the particles' triangles on a frame of the same topology (the side the
+    /// triangle winds counter-clockwise towards: outward on a consistently wound body).
+    pub fn normals(&self, vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+        self.triangle
+            .iter()
+            .map(|&t| {
+                let [a, b, c] = corners(vertices, triangles[t as usize]);
+                (b - a).cross(c - a).normalize_or(Vec3::Y)
+            })
+            .collect()
+    }
+
     /// Bytes of the binding (triangle and barycentric coordinates), and of positions for
     /// `frames` frames stored as 16-byte vec4s.
     pub fn memory_bytes(&self, frames: usize) -> (usize, usize) {

@@ -232,6 +232,7 @@ impl Simulation {
                 .fold(0.0, f32::max);
             for s in &mut self.shells {
                 s.advance(from, to, reach);
+                self.driven_speed = self.driven_speed.max(s.fastest_motion() / self.step);
             }
         }
         self.place_attachments();
@@ -264,11 +265,11 @@ impl Simulation {
         }
     }
 
-    /// Kinetic energy attachments and moving colliders may have given the garments so far: all
-    /// of their mass at the fastest speed any attached particle or collider has been driven
-    /// [J]. The stability rule counts it as released energy, as it does the potential energy: a
-    /// cloth dragged by its attachments or hit by a moving collider gains kinetic energy without
-    /// falling.
+    /// Kinetic energy attachments, moving colliders and characters may have given the garments
+    /// so far: all of their mass at the fastest speed any attached particle, collider or skin
+    /// has been driven [J]. The stability rule counts it as released energy, as it does the
+    /// potential energy: a cloth dragged by its attachments or hit by a moving body gains
+    /// kinetic energy without falling.
     pub fn driven_energy(&self) -> f64 {
         let mass: f64 = self.model.mass.iter().map(|&m| m as f64).sum();
         0.5 * mass * (self.driven_speed as f64).powi(2)
