@@ -115,7 +115,8 @@ pub fn gpu_backend(
     }
 }
 
-/// Where shell caches live: `$XDG_CACHE_HOME/drape`, else `~/.cache/drape`, else the temp folder.
+/// drape's cache folder (shell caches, and the mannequin files of the embedded default scene):
+/// `$XDG_CACHE_HOME/drape`, else `~/.cache/drape`, else the temp folder.
 pub fn shell_cache_dir() -> PathBuf {
     std::env::var_os("XDG_CACHE_HOME")
         .map(PathBuf::from)

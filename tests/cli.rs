@@ -113,15 +113,58 @@ fn gpu_backend_bakes_or_says_why_not() {
 }
 
 #[test]
-fn the_embedded_default_scene_inspects() {
+fn the_embedded_default_scene_is_scene_p_with_its_mannequin_written_to_the_cache() {
     let dir = temp_dir();
-    let out = drape(dir.path(), &["inspect"]);
+    let cache = dir.path().join("cache");
+    let inspect = || {
+        std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
+            .arg("inspect")
+            .env("XDG_CACHE_HOME", &cache)
+            .current_dir(dir.path())
+            .output()
+            .expect("drape runs")
+    };
+    let out = inspect();
     assert!(out.status.success(), "{}", stderr(&out));
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("10000 particles") && text.contains("2 colours"),
+        text.contains("scene 'poncho'")
+            && text.contains("4148 particles (66 × 66 × 1)")
+            && text.contains("character 'mannequin'")
+            && text.contains("character 'stool'"),
         "{text}"
     );
+    // The poncho clip (4 s at 12 frames per second) and the stool, as `drape mannequin` writes
+    // them; a second run reuses them.
+    let folders: Vec<_> = std::fs::read_dir(cache.join("drape"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("mannequin-")
+        })
+        .collect();
+    assert_eq!(folders.len(), 1, "{folders:?}");
+    let mannequin = folders[0].join("characters/mannequin");
+    assert_eq!(
+        std::fs::read_dir(mannequin.join("poncho")).unwrap().count(),
+        49
+    );
+    let committed = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("characters/mannequin");
+    for name in [
+        "poncho/frame_0001.obj",
+        "poncho/frame_0049.obj",
+        "stool.obj",
+    ] {
+        assert_eq!(
+            std::fs::read(mannequin.join(name)).unwrap(),
+            std::fs::read(committed.join(name)).unwrap(),
+            "{name}"
+        );
+    }
+    assert!(inspect().status.success());
 }
 
 #[test]

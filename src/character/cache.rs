@@ -27,7 +27,7 @@ pub struct ShellCache {
 }
 
 /// FNV-1a, 64 bits: a stable hash of the inputs (not for security).
-fn fnv(hash: u64, bytes: &[u8]) -> u64 {
+pub(crate) fn fnv(hash: u64, bytes: &[u8]) -> u64 {
     bytes
         .iter()
         .fold(hash, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3))

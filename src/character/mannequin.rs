@@ -271,3 +271,49 @@ pub fn files() -> Vec<(String, String)> {
     out.push(("stool.obj".into(), obj_text("stool", &v, &t)));
     out
 }
+
+/// Writes the files scene P needs (the `poncho` clip and the stool) under
+/// `cache/mannequin-<hash>/characters/mannequin/`, unless an earlier run did, and returns
+/// `cache/mannequin-<hash>`: the embedded default scene reads them from there, as
+/// `scenes/poncho.json` reads the committed copies. The hash covers every file's text, so a
+/// changed mannequin gets a new folder; files are written into a temporary folder first and
+/// moved into place whole, so a crash never leaves half a clip.
+pub fn materialise(cache: &std::path::Path) -> crate::error::Result<std::path::PathBuf> {
+    use crate::error::Error;
+    let files: Vec<(String, String)> = files()
+        .into_iter()
+        .filter(|(name, _)| name.starts_with("poncho/") || name == "stool.obj")
+        .collect();
+    let hash = files.iter().fold(0xcbf2_9ce4_8422_2325, |h, (name, text)| {
+        super::cache::fnv(super::cache::fnv(h, name.as_bytes()), text.as_bytes())
+    });
+    let root = cache.join(format!("mannequin-{hash:016x}"));
+    if root.join("complete").is_file() {
+        return Ok(root);
+    }
+    let staging = cache.join(format!(".mannequin-{hash:016x}-{}", std::process::id()));
+    let write = || -> crate::error::Result<()> {
+        for (name, text) in &files {
+            let path = staging.join("characters/mannequin").join(name);
+            let dir = path.parent().expect("a file in a folder");
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create", e))?;
+            std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
+        }
+        let scenes = staging.join("scenes");
+        std::fs::create_dir_all(&scenes).map_err(|e| Error::io(&scenes, "cannot create", e))?;
+        let done = staging.join("complete");
+        std::fs::write(&done, "").map_err(|e| Error::io(&done, "cannot write", e))
+    };
+    let written = write().and_then(|()| {
+        std::fs::rename(&staging, &root).or_else(|e| {
+            // Another run may have put the same files in place meanwhile.
+            if root.join("complete").is_file() {
+                Ok(())
+            } else {
+                Err(Error::io(&root, "cannot create", e))
+            }
+        })
+    });
+    let _ = std::fs::remove_dir_all(&staging);
+    written.map(|()| root)
+}

@@ -144,7 +144,7 @@ pub enum SolverArg {
 
 #[derive(Args, Debug)]
 pub struct SceneArgs {
-    /// Scene file (JSON). Without one, the embedded default scene (hanging cloth).
+    /// Scene file (JSON). Without one, the embedded default scene (scene P, the poncho).
     pub scene: Option<PathBuf>,
     /// Solver, overriding the scene's.
     #[arg(long, value_enum)]

@@ -71,6 +71,13 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         println!("  colour {c}: {} particles", r.len());
     }
     println!("  colliders: {}", scene.colliders.len());
+    for (i, c) in scene.characters.iter().enumerate() {
+        println!(
+            "  character '{}': {}",
+            c.name.clone().unwrap_or_else(|| format!("character{i}")),
+            scene.character_path(i).display()
+        );
+    }
     println!(
         "  total: {} particles, {} springs, about {:.2} MiB of solver memory",
         model.particle_count(),

@@ -10,7 +10,7 @@ pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
     let (mut scene, file) = match &args.scene {
         Some(path) => (Scene::load(path)?, path.display().to_string()),
         None => (
-            Scene::default_scene(),
+            Scene::default_scene(&drape::bake::shell_cache_dir())?,
             scene::DEFAULT_SCENE_FILE.to_string(),
         ),
     };

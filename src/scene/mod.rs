@@ -13,10 +13,11 @@ use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The scene `drape bake` runs when no scene file is given (scene H, the hanging cloth).
-pub const DEFAULT_SCENE: &str = include_str!("../../scenes/hanging_cloth.json");
+/// The scene `drape bake` runs when no scene file is given (scene P, the poncho on the
+/// mannequin).
+pub const DEFAULT_SCENE: &str = include_str!("../../scenes/poncho.json");
 /// The name shown for the embedded default scene in messages and reports.
-pub const DEFAULT_SCENE_FILE: &str = "<embedded hanging_cloth.json>";
+pub const DEFAULT_SCENE_FILE: &str = "<embedded poncho.json>";
 
 /// A whole scene: timing, forces, solver, garments, colliders and outputs.
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -54,10 +55,12 @@ pub struct Scene {
     /// Default: half the smallest rest spacing of any garment.
     pub particle_radius: Option<f32>,
     /// Test each particle's path over a substep against analytic colliders, not only where it
-    /// ends, so fast colliders and large steps do not let cloth through. Default true.
+    /// ends (analytic colliders and characters' shells), so fast colliders and large steps do
+    /// not let cloth through. Default true.
     pub swept_collisions: bool,
     /// Folder that relative paths in the scene are resolved against (the scene file's folder;
-    /// the working folder for the embedded scene). Not a scene field.
+    /// the working folder for scene text; `scenes/` of the materialised mannequin for the
+    /// embedded default). Not a scene field.
     #[serde(skip)]
     pub base_dir: std::path::PathBuf,
     /// What to write.
@@ -552,9 +555,11 @@ impl Scene {
         self.base_dir.join(&self.characters[index].file)
     }
 
-    /// The embedded default scene.
-    pub fn default_scene() -> Scene {
-        Scene::parse(DEFAULT_SCENE, DEFAULT_SCENE_FILE).expect("the embedded scene is valid")
+    /// The embedded default scene, scene P, with the mannequin clip and stool it needs written
+    /// under `cache` (see [`crate::character::mannequin::materialise`]).
+    pub fn default_scene(cache: &Path) -> Result<Scene> {
+        let root = crate::character::mannequin::materialise(cache)?;
+        Scene::parse_in(DEFAULT_SCENE, DEFAULT_SCENE_FILE, &root.join("scenes"))
     }
 
     /// Parses and validates scene JSON; `file` names the source in error messages. Garment
