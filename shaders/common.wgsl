@@ -59,6 +59,14 @@ struct Collider {
     second: vec4<f32>,         // box half extents, capsule end; w = 1: swept test on
 }
 
+// Particle–particle collisions: constants (uniform) of the hash grid.
+struct Contacts {
+    inv_cell: f32,             // 1 / cell width = 0.5 / particle radius
+    diameter: f32,             // particles keep this far apart [m]
+    table: u32,                // hash buckets (a power of two)
+    enabled: u32,              // 0: no particle collisions (the buffers are placeholders)
+}
+
 const B_END: u32 = 0x80000000u;
 const TINY_LENGTH: f32 = 1e-12;
 
@@ -76,6 +84,17 @@ const TINY_LENGTH: f32 = 1e-12;
 @group(0) @binding(11) var<storage, read> tether_start: array<u32>;
 @group(0) @binding(12) var<storage, read> tethers: array<Tether>;
 @group(0) @binding(13) var<storage, read> colliders: array<Collider>;
+
+// Particle–particle collisions (src/collide/particles.rs): per particle (lattice cell xyz,
+// garment w), its bucket, the buckets' starts, a scatter cursor, particles sorted by bucket, and
+// each particle's push of the substep.
+@group(2) @binding(0) var<uniform> contacts: Contacts;
+@group(2) @binding(1) var<storage, read> pc_cell: array<vec4<i32>>;
+@group(2) @binding(2) var<storage, read_write> pc_bucket: array<u32>;
+@group(2) @binding(3) var<storage, read_write> pc_start: array<atomic<u32>>;
+@group(2) @binding(4) var<storage, read_write> pc_cursor: array<atomic<u32>>;
+@group(2) @binding(5) var<storage, read_write> pc_items: array<u32>;
+@group(2) @binding(6) var<storage, read_write> pc_push: array<vec4<f32>>;
 
 // L / |e| for an edge of squared length `length_squared` (0 when too short to have a direction).
 fn spring_projection_scale(length_squared: f32, rest: f32) -> f32 {

@@ -136,6 +136,9 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let xi = x[i];
     var d = delta[i];
+    if (contacts.enabled != 0u) {
+        d = d + pc_push[i];
+    }
     for (var k = tether_start[i]; k < tether_start[i + 1u]; k = k + 1u) {
         let t = tethers[k];
         d = d + tether_correction((xi - x[t.pin]) + (d - target_delta[t.pin]), t.rest);

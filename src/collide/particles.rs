@@ -1,4 +1,5 @@
-//! Particle–particle collisions (CPU): self-collision of a garment and garment–garment contact.
+//! Particle–particle collisions: self-collision of a garment and garment–garment contact (CPU
+//! here; `shaders/particles.wgsl` runs the same steps on the GPU).
 //!
 //! Every substep, after the solver, the predicted positions q = x + Δ are sorted into a uniform
 //! hash grid whose cells are one particle diameter wide (a counting sort, so building costs two
@@ -69,6 +70,26 @@ impl ParticleCollisions {
             * 0.5
     }
 
+    /// Hash buckets of the grid (a power of two).
+    pub fn table(&self) -> usize {
+        self.table
+    }
+
+    /// Per particle (storage order): its lattice cell and, as the fourth value, its garment: what
+    /// the GPU kernels read to skip pairs springs hold.
+    pub fn cells_and_garments(&self) -> Vec<[i32; 4]> {
+        self.cell
+            .iter()
+            .zip(&self.garment)
+            .map(|(c, &g)| [c[0], c[1], c[2], g as i32])
+            .collect()
+    }
+
+    /// 1 / cell width: the scale from positions to cells.
+    pub fn inv_cell(&self) -> f32 {
+        0.5 / self.radius
+    }
+
     /// An empty grid for this model.
     pub fn grid(&self) -> Grid {
         Grid {
@@ -81,7 +102,7 @@ impl ParticleCollisions {
     /// Integer cell of a position (cells one diameter wide).
     #[inline]
     fn cell_of(&self, p: Vec4) -> [i32; 3] {
-        let s = 0.5 / self.radius;
+        let s = self.inv_cell();
         [
             (p.x * s).floor() as i32,
             (p.y * s).floor() as i32,
@@ -134,7 +155,7 @@ impl ParticleCollisions {
         let qi = q(i);
         // Cells are one diameter wide, so every particle closer than a diameter lies in the 2 × 2 × 2
         // block of cells on the sides of the cell that `qi` is nearest to.
-        let s = 0.5 / self.radius;
+        let s = self.inv_cell();
         let scaled = [qi.x * s, qi.y * s, qi.z * s];
         let c = scaled.map(|v| v.floor() as i32);
         let side: [i32; 3] = std::array::from_fn(|a| {

@@ -6,8 +6,9 @@
 
 use crate::error::{Error, Result};
 
-/// Storage buffers one kernel binds (shaders/common.wgsl group 0, plus the residual group).
-pub const STORAGE_BUFFERS_NEEDED: u32 = 16;
+/// Storage buffers one kernel binds (shaders/common.wgsl group 0, the residual group and the
+/// particle-collision group).
+pub const STORAGE_BUFFERS_NEEDED: u32 = 22;
 
 /// A device and queue with what the report says about them.
 pub struct GpuContext {

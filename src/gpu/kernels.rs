@@ -7,7 +7,7 @@ use super::layout::GpuParams;
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 
 /// Kernel files and their entry points.
-pub const KERNEL_FILES: [(&str, &str, &[&str]); 5] = [
+pub const KERNEL_FILES: [(&str, &str, &[&str]); 6] = [
     (
         "predict.wgsl",
         include_str!("../../shaders/predict.wgsl"),
@@ -33,6 +33,18 @@ pub const KERNEL_FILES: [(&str, &str, &[&str]); 5] = [
         include_str!("../../shaders/residual.wgsl"),
         &["residual_partial", "residual_total"],
     ),
+    (
+        "particles.wgsl",
+        include_str!("../../shaders/particles.wgsl"),
+        &[
+            "pc_clear",
+            "pc_count",
+            "pc_scan",
+            "pc_scatter",
+            "pc_order",
+            "pc_push_out",
+        ],
+    ),
 ];
 
 /// The full source of one kernel file: the common part, then the file.
@@ -52,6 +64,8 @@ const READ_ONLY: std::ops::RangeInclusive<u32> = 7..=13;
 pub struct Kernels {
     pub group0: wgpu::BindGroupLayout,
     pub group1: wgpu::BindGroupLayout,
+    /// Particle–particle collisions: a uniform, one read-only and five read-write buffers.
+    pub group2: wgpu::BindGroupLayout,
     pub predict: wgpu::ComputePipeline,
     pub project: wgpu::ComputePipeline,
     pub sweep: wgpu::ComputePipeline,
@@ -62,6 +76,12 @@ pub struct Kernels {
     pub finish_static: wgpu::ComputePipeline,
     pub residual_partial: wgpu::ComputePipeline,
     pub residual_total: wgpu::ComputePipeline,
+    pub pc_clear: wgpu::ComputePipeline,
+    pub pc_count: wgpu::ComputePipeline,
+    pub pc_scan: wgpu::ComputePipeline,
+    pub pc_scatter: wgpu::ComputePipeline,
+    pub pc_order: wgpu::ComputePipeline,
+    pub pc_push_out: wgpu::ComputePipeline,
 }
 
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -100,9 +120,27 @@ impl Kernels {
             label: Some("drape residuals"),
             entries: &[storage(0, false), storage(1, false), storage(2, false)],
         });
+        let mut contacts = vec![wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<
+                    super::layout::GpuContacts,
+                >() as u64),
+            },
+            count: None,
+        }];
+        contacts.push(storage(1, true));
+        contacts.extend((2..=6).map(|b| storage(b, false)));
+        let group2 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("drape particle collisions"),
+            entries: &contacts,
+        });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("drape"),
-            bind_group_layouts: &[Some(&group0), Some(&group1)],
+            bind_group_layouts: &[Some(&group0), Some(&group1), Some(&group2)],
             immediate_size: 0,
         });
         let modules: Vec<(&str, wgpu::ShaderModule)> = KERNEL_FILES
@@ -145,8 +183,15 @@ impl Kernels {
             finish_static: pipeline("finish_static"),
             residual_partial: pipeline("residual_partial"),
             residual_total: pipeline("residual_total"),
+            pc_clear: pipeline("pc_clear"),
+            pc_count: pipeline("pc_count"),
+            pc_scan: pipeline("pc_scan"),
+            pc_scatter: pipeline("pc_scatter"),
+            pc_order: pipeline("pc_order"),
+            pc_push_out: pipeline("pc_push_out"),
             group0,
             group1,
+            group2,
         }
     }
 }

@@ -55,6 +55,16 @@ pub struct GpuCollider {
 /// Bytes between two dispatches' parameters: wgpu's minimum uniform offset alignment.
 pub const PARAMS_STRIDE: u64 = 256;
 
+/// Constants of the particle–particle collision grid (`Contacts` in the WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuContacts {
+    pub inv_cell: f32,
+    pub diameter: f32,
+    pub table: u32,
+    pub enabled: u32,
+}
+
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuParticle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuCollider>() == 48);
@@ -63,8 +73,9 @@ const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelSpring>() == 1
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelTether>() == 12);
 
 /// Every WGSL struct with the size of its Rust mirror, for the layout test.
-pub const MIRRORS: [(&str, usize); 6] = [
+pub const MIRRORS: [(&str, usize); 7] = [
     ("Params", std::mem::size_of::<GpuParams>()),
+    ("Contacts", std::mem::size_of::<GpuContacts>()),
     ("Particle", std::mem::size_of::<GpuParticle>()),
     ("Collider", std::mem::size_of::<GpuCollider>()),
     ("Slot", std::mem::size_of::<crate::sim::model::Slot>()),

@@ -8,7 +8,7 @@
 
 use super::context::GpuContext;
 use super::kernels::Kernels;
-use super::layout::{GpuCollider, GpuParams, GpuParticle, PARAMS_STRIDE};
+use super::layout::{GpuCollider, GpuContacts, GpuParams, GpuParticle, PARAMS_STRIDE};
 use crate::collide::Shape;
 use crate::error::{Error, Result};
 use crate::scene::SolverKind;
@@ -38,6 +38,9 @@ pub struct GpuSimulation {
     readback: wgpu::Buffer,
     group0: wgpu::BindGroup,
     group1: wgpu::BindGroup,
+    group2: wgpu::BindGroup,
+    /// Hash buckets of the particle-collision grid, or None without particle collisions.
+    contact_table: Option<u32>,
     particles: u32,
     springs: u32,
     structural: u32,
@@ -80,11 +83,6 @@ impl GpuSimulation {
         if sim.moving_colliders() || sim.colliders.iter().any(turned) {
             return Err(Error::Gpu {
                 reason: "moving (keyframed) and rotated colliders are simulated on the CPU backend only so far".into(),
-            });
-        }
-        if sim.particle_collisions.is_some() {
-            return Err(Error::Gpu {
-                reason: "particle collisions are simulated on the CPU backend only so far".into(),
             });
         }
         let device = &ctx.device;
@@ -311,9 +309,53 @@ impl GpuSimulation {
                 },
             ],
         });
+        // Particle–particle collisions (placeholder buffers when off: the layout is shared).
+        let collisions = sim.particle_collisions.as_ref();
+        let table = collisions.map_or(1, |c| c.table());
+        let contacts = GpuContacts {
+            inv_cell: collisions.map_or(0.0, |c| c.inv_cell()),
+            diameter: collisions.map_or(0.0, |c| 2.0 * c.radius),
+            table: table as u32,
+            enabled: collisions.is_some() as u32,
+        };
+        let contacts = init(
+            "contacts",
+            bytemuck::bytes_of(&contacts),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let cells = collisions.map_or_else(|| vec![[0i32; 4]], |c| c.cells_and_garments());
+        let cells = init("pc_cell", bytemuck::cast_slice(&cells), read);
+        let per_particle = if collisions.is_some() { n.max(1) } else { 1 };
+        let pc_bucket = init("pc_bucket", &vec![0u8; 4 * per_particle], rw);
+        let pc_start = init("pc_start", &vec![0u8; 4 * (table + 1)], rw);
+        let pc_cursor = init("pc_cursor", &vec![0u8; 4 * (table + 1)], rw);
+        let pc_items = init("pc_items", &vec![0u8; 4 * per_particle], rw);
+        let pc_push = init("pc_push", &vec![0u8; 16 * per_particle], rw);
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: contacts.as_entire_binding(),
+        }];
+        for (k, b) in [
+            &cells, &pc_bucket, &pc_start, &pc_cursor, &pc_items, &pc_push,
+        ]
+        .iter()
+        .enumerate()
+        {
+            entries.push(wgpu::BindGroupEntry {
+                binding: k as u32 + 1,
+                resource: b.as_entire_binding(),
+            });
+        }
+        let group2 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("drape particle collisions"),
+            layout: &kernels.group2,
+            entries: &entries,
+        });
         Ok(GpuSimulation {
             ctx,
             kernels,
+            group2,
+            contact_table: collisions.map(|_| table as u32),
             x,
             velocity,
             residuals,
@@ -411,6 +453,7 @@ impl GpuSimulation {
             timestamp_writes: None,
         });
         pass.set_bind_group(1, &self.group1, &[]);
+        pass.set_bind_group(2, &self.group2, &[]);
         let dispatch = |pass: &mut wgpu::ComputePass,
                         pipeline: &wgpu::ComputePipeline,
                         slot: u32,
@@ -462,6 +505,16 @@ impl GpuSimulation {
                     }
                     sweeps(&mut pass);
                 }
+            }
+            // Particle–particle collisions: sort q = x + Δ into the grid, then each particle's
+            // push (added by `finish`).
+            if let Some(table) = self.contact_table {
+                dispatch(&mut pass, &k.pc_clear, PARAMS_NEXT, table + 1, GROUP);
+                dispatch(&mut pass, &k.pc_count, PARAMS_NEXT, n, GROUP);
+                dispatch(&mut pass, &k.pc_scan, PARAMS_NEXT, 1, 1);
+                dispatch(&mut pass, &k.pc_scatter, PARAMS_NEXT, n, GROUP);
+                dispatch(&mut pass, &k.pc_order, PARAMS_NEXT, table, GROUP);
+                dispatch(&mut pass, &k.pc_push_out, PARAMS_NEXT, n, GROUP);
             }
             let last = substep + 1 == sim.substeps;
             if integrating {

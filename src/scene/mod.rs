@@ -49,7 +49,7 @@ pub struct Scene {
     /// Animated characters the garments collide with, through their particle shells. Default none.
     pub characters: Vec<CharacterSpec>,
     /// Particle–particle collisions: a garment against itself and against other garments (CPU
-    /// backend only so far). Default false.
+    /// and GPU backends). Default false.
     pub particle_collisions: bool,
     /// Radius of a garment particle in those collisions [m]; particles keep twice this apart.
     /// Default: half the smallest rest spacing of any garment.
