@@ -1,7 +1,8 @@
 //! Scene P (`scenes/poncho.json`): a 66 × 66 poncho with a head hole falls onto the mannequin,
 //! who lifts the arms and sits down on a stool. At its default step no poncho particle comes
 //! deeper than half a shell particle radius into the mannequin or the stool in any frame, and the
-//! poncho ends on the seated figure's shoulders.
+//! poncho ends on the seated figure's shoulders. The poncho on a real character
+//! (`scenes/poncho_walk.json`, CesiumMan walking) stays out of him too.
 
 use drape::bake::{bake, BakeOptions};
 use drape::scene::{GltfOutput, Scene};
@@ -50,4 +51,37 @@ fn the_poncho_stays_out_of_the_mannequin_and_on_its_shoulders() {
         centre.y > 0.9 && centre.x.abs() < 0.1,
         "rim centre {centre}"
     );
+}
+
+#[test]
+fn a_poncho_on_the_walking_cesium_man_stays_out_of_him() {
+    let mut scene = Scene::load(std::path::Path::new("scenes/poncho_walk.json")).expect("scene");
+    scene.frames = 90;
+    scene.output.obj = false;
+    scene.output.gltf = GltfOutput::None;
+    let dir = tempfile::tempdir().unwrap();
+    let options = BakeOptions {
+        out: dir.path().join("out"),
+        scene_file: "scenes/poncho_walk.json".into(),
+        threads: Some(2),
+        progress: false,
+        shell_cache: Some(dir.path().join("cache")),
+    };
+    let result = bake(&scene, &options).expect("bake");
+    let r = &result.report;
+    assert!(r.stable, "{:?}", r.failure);
+    let deepest = r
+        .penetrations_per_frame
+        .iter()
+        .map(|f| f.deepest_m[1])
+        .fold(0.0f32, f32::max);
+    eprintln!("deepest into CesiumMan over 90 frames: {deepest} m");
+    assert!(deepest <= 0.5 * scene.characters[0].radius, "{deepest} m");
+    // It rests on him (his head is at 1.45 m): not on the floor.
+    let top = result
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MIN, f32::max);
+    assert!(top > 1.3, "the poncho's highest point is at {top} m");
 }
