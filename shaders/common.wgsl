@@ -49,7 +49,9 @@ struct Tether {
 }
 
 // An analytic collider (48 bytes): kind 0 plane (normal, offset), 1 sphere (center, radius),
-// 2 axis-aligned box (center, half extents), 3 capsule (start, end, radius).
+// 2 axis-aligned box (center, half extents), 3 capsule (start, end, radius), 4 upright funnel
+// (spout center, radius, top radius in offset, second = (height, half thickness)), 5 wedge
+// (center, half extents; blade down along Z).
 struct Collider {
     kind: u32,
     friction: f32,

@@ -38,6 +38,81 @@ fn box_distance(p: vec3<f32>, half: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(n, q[axis]);
 }
 
+// Closest point to `q` on the segment `a`–`b` (2-D).
+fn closest_on_segment(q: vec2<f32>, a: vec2<f32>, b: vec2<f32>) -> vec2<f32> {
+    let ab = b - a;
+    let t = clamp(dot(q - a, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
+    return a + ab * t;
+}
+
+// Signed distance from an upright funnel wall at the origin (as funnel_distance on the CPU).
+fn funnel_distance(p: vec3<f32>, radius: f32, top_radius: f32, height: f32, half_t: f32) -> vec4<f32> {
+    let r = sqrt(p.x * p.x + p.z * p.z);
+    var radial = vec3<f32>(1.0, 0.0, 0.0);
+    if (r > 1e-9) {
+        radial = vec3<f32>(p.x / r, 0.0, p.z / r);
+    }
+    let a = vec2<f32>(radius, 0.0);
+    let b = vec2<f32>(top_radius, height);
+    let q = vec2<f32>(r, p.y);
+    let off = q - closest_on_segment(q, a, b);
+    let len = length(off);
+    var n2: vec2<f32>;
+    if (len > 1e-9) {
+        n2 = off / len;
+    } else {
+        let e = normalize(b - a);
+        n2 = vec2<f32>(e.y, -e.x);
+    }
+    return vec4<f32>(radial * n2.x + vec3<f32>(0.0, 1.0, 0.0) * n2.y, len - half_t);
+}
+
+// Signed distance from a wedge of half extents `half` at the origin (as wedge_distance).
+fn wedge_distance(p: vec3<f32>, half: vec3<f32>) -> vec4<f32> {
+    var corners = array<vec2<f32>, 3>(
+        vec2<f32>(0.0, -half.y),
+        vec2<f32>(half.x, half.y),
+        vec2<f32>(-half.x, half.y),
+    );
+    let q = p.xy;
+    var best = 3.4e38;
+    var c = vec2<f32>(0.0);
+    var edge_normal = vec2<f32>(0.0, 1.0);
+    var inside = true;
+    for (var k = 0u; k < 3u; k = k + 1u) {
+        let a = corners[k];
+        let b = corners[(k + 1u) % 3u];
+        let e = b - a;
+        let outward = normalize(vec2<f32>(e.y, -e.x));
+        inside = inside && dot(q - a, outward) <= 0.0;
+        let cc = closest_on_segment(q, a, b);
+        let d = dot(q - cc, q - cc);
+        if (d < best) {
+            best = d;
+            c = cc;
+            edge_normal = outward;
+        }
+    }
+    let d2 = sqrt(best);
+    var n2 = edge_normal;
+    if (d2 > 1e-9) {
+        n2 = select((q - c) / d2, (c - q) / d2, inside);
+    }
+    let flat = select(d2, -d2, inside);
+    let along = abs(p.z) - half.z;
+    let z = vec3<f32>(0.0, 0.0, select(-1.0, 1.0, p.z >= 0.0));
+    if (flat <= 0.0 && along <= 0.0) {
+        if (flat >= along) {
+            return vec4<f32>(n2, 0.0, flat);
+        }
+        return vec4<f32>(z, along);
+    }
+    let u = max(flat, 0.0);
+    let v = max(along, 0.0);
+    let d = sqrt(u * u + v * v);
+    return vec4<f32>((vec3<f32>(n2, 0.0) * u + z * v) / d, d);
+}
+
 // Signed distance to a collider's surface (xyz: outward normal, w: distance).
 fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
     switch c.kind {
@@ -46,6 +121,12 @@ fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
         }
         case 2u: {
             return box_distance(p - c.vector.xyz, c.second.xyz);
+        }
+        case 4u: {
+            return funnel_distance(p - c.vector.xyz, c.radius, c.offset, c.second.x, c.second.y);
+        }
+        case 5u: {
+            return wedge_distance(p - c.vector.xyz, c.second.xyz);
         }
         case 3u: {
             let axis = c.second.xyz - c.vector.xyz;

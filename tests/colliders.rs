@@ -1,5 +1,7 @@
-//! Boxes and capsules: signed distances against hand-computed values, and cloth that comes to
-//! rest on them stays outside (CPU; the GPU's agreement is in `gpu_parity.rs`).
+//! Boxes, capsules, funnels and wedges: signed distances against hand-computed values, normals
+//! against the distance's numerical gradient, and cloth that comes to rest on them stays outside;
+//! cloth dropped into a funnel passes through its spout (CPU; the GPU's agreement is in
+//! `gpu_parity.rs`).
 
 mod common;
 
@@ -61,6 +63,142 @@ fn signed_distances_of_box_and_capsule() {
         let (d, _) = capsule.distance(p);
         assert!((d - distance).abs() < 1e-6, "{p}: {d}");
     }
+}
+
+fn collider(shape: Shape) -> Collider {
+    Collider {
+        shape,
+        friction: 0.0,
+        moved: Vec3::ZERO,
+        swept: true,
+    }
+}
+
+fn funnel() -> Collider {
+    collider(Shape::Funnel {
+        center: Vec3::new(0.0, 0.5, 0.0),
+        radius: 0.1,
+        top_radius: 0.4,
+        height: 0.4,
+        half_thickness: 0.01,
+    })
+}
+
+fn wedge() -> Collider {
+    collider(Shape::Wedge {
+        center: Vec3::new(0.0, 1.0, 0.0),
+        half: Vec3::new(0.2, 0.3, 0.5),
+        rotation: glam::Quat::from_rotation_y(0.4),
+    })
+}
+
+#[test]
+fn signed_distances_of_funnel_and_wedge() {
+    let f = funnel();
+    // The wall's middle at the spout, half-way up (both sides), the open axis, below the spout.
+    let slope = Vec3::new(0.4, -0.3, 0.0).normalize(); // outward normal of the wall in XY
+    for (p, distance) in [
+        (Vec3::new(0.1, 0.5, 0.0), -0.01),
+        (Vec3::new(0.25, 0.7, 0.0) + slope * 0.05, 0.04),
+        (Vec3::new(0.25, 0.7, 0.0) - slope * 0.03, 0.02),
+        (Vec3::new(0.0, 0.7, 0.0), 0.25 * 0.8 - 0.01),
+        (Vec3::new(0.1, 0.3, 0.0), 0.19),
+    ] {
+        let (d, _) = f.distance(p);
+        assert!(
+            (d - distance).abs() < 1e-5,
+            "funnel at {p}: {d}, expected {distance}"
+        );
+    }
+    let w = wedge();
+    let turn = glam::Quat::from_rotation_y(0.4);
+    let at = |x: f32, y: f32, z: f32| Vec3::new(0.0, 1.0, 0.0) + turn * Vec3::new(x, y, z);
+    // Below the blade, above the top face, beyond an end, inside under the top face.
+    for (p, distance, normal) in [
+        (at(0.0, -0.5, 0.0), 0.2, Some(turn * Vec3::NEG_Y)),
+        (at(0.05, 0.4, 0.1), 0.1, Some(turn * Vec3::Y)),
+        (at(0.0, 0.0, 0.8), 0.3, Some(turn * Vec3::Z)),
+        (at(0.0, 0.25, 0.0), -0.05, Some(turn * Vec3::Y)),
+    ] {
+        let (d, n) = w.distance(p);
+        assert!(
+            (d - distance).abs() < 1e-5,
+            "wedge at {p}: {d}, expected {distance}"
+        );
+        if let Some(normal) = normal {
+            assert!((n - normal).length() < 1e-4, "wedge normal at {p}: {n}");
+        }
+    }
+}
+
+#[test]
+fn normals_are_the_gradient_of_the_distance() {
+    let shapes = [funnel(), wedge()];
+    let h = 1e-3f32;
+    let mut checked = 0;
+    for c in &shapes {
+        for i in 0..12 {
+            for j in 0..12 {
+                for k in 0..6 {
+                    let p = Vec3::new(
+                        -0.55 + 0.1 * i as f32,
+                        0.35 + 0.1 * j as f32,
+                        -0.55 + 0.2 * k as f32,
+                    );
+                    let d = |q: Vec3| c.distance(q).0;
+                    let g = Vec3::new(
+                        d(p + Vec3::X * h) - d(p - Vec3::X * h),
+                        d(p + Vec3::Y * h) - d(p - Vec3::Y * h),
+                        d(p + Vec3::Z * h) - d(p - Vec3::Z * h),
+                    ) / (2.0 * h);
+                    // Where the distance is smooth its gradient has unit length; skip the
+                    // creases (the wedge's inner medial planes, the funnel's axis).
+                    if (g.length() - 1.0).abs() > 1e-2 {
+                        continue;
+                    }
+                    let (_, n) = c.distance(p);
+                    assert!(
+                        (n - g).length() < 2e-2,
+                        "{:?} at {p}: normal {n}, gradient {g}",
+                        c.shape
+                    );
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 1000, "only {checked} points checked");
+}
+
+#[test]
+fn cloth_dropped_into_a_funnel_passes_through_its_spout() {
+    let scene = drape::scene::Scene::load(std::path::Path::new("scenes/funnel.json")).unwrap();
+    let mut scene = scene;
+    scene.particle_collisions = false;
+    scene.frames = 120;
+    let mut sim = Simulation::new(&scene);
+    let wall = sim.colliders[0];
+    let mut deepest = 0.0f32;
+    for _ in 0..scene.frames {
+        sim.step_frame();
+        for q in &sim.state.positions {
+            deepest = deepest.max(-wall.distance(q.truncate()).0);
+        }
+    }
+    let highest = sim
+        .export_positions()
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MIN, f32::max);
+    eprintln!("funnel: deepest into the wall {deepest} m; highest particle after 2 s {highest} m");
+    assert!(
+        deepest <= 0.0,
+        "a particle went {deepest} m into the funnel's wall"
+    );
+    assert!(
+        highest < 0.5,
+        "the cloth should have passed the spout at 0.5 m: {highest}"
+    );
 }
 
 #[test]
@@ -215,5 +353,55 @@ fn the_report_lists_penetrations_frame_by_frame() {
         );
         // Particles keep half the thickness from the sphere: none inside in any frame.
         assert_eq!(f["inside"][0], 0, "frame {}", k + 1);
+    }
+}
+
+#[test]
+fn bad_funnels_and_wedges_are_input_errors() {
+    let dir = common::temp_dir();
+    for (collider, field, expect) in [
+        (
+            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4 }"#,
+            "height",
+            "needs height",
+        ),
+        (
+            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "thickness": 0 }"#,
+            "thickness",
+            "above zero",
+        ),
+        (
+            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "size": [1, 1, 1] }"#,
+            "size",
+            "a funnel takes",
+        ),
+        (
+            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "keyframes": [{ "time": 0 }, { "time": 1, "rotation": [90, 0, 0] }] }"#,
+            "keyframes",
+            "upright",
+        ),
+        (
+            r#"{ "kind": "wedge", "center": [0, 1, 0] }"#,
+            "size",
+            "needs size",
+        ),
+        (
+            r#"{ "kind": "wedge", "center": [0, 1, 0], "size": [0.2, -1, 1] }"#,
+            "size",
+            "longer than 0",
+        ),
+    ] {
+        common::write(
+            dir.path(),
+            "scene.json",
+            &format!(r#"{{ "garments": [{{}}], "colliders": [{collider}] }}"#),
+        );
+        let out = common::drape(dir.path(), &["inspect", "scene.json"]);
+        let err = common::stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{collider}: {err}");
+        assert!(
+            err.contains(&format!("colliders[0].{field}")) && err.contains(expect),
+            "{collider}: {err}"
+        );
     }
 }

@@ -1,4 +1,4 @@
-//! Collisions with analytic shapes (plane, sphere, axis-aligned box, capsule), resolved by
+//! Collisions with analytic shapes (plane, sphere, box, capsule, funnel, wedge), resolved by
 //! projection after each solve.
 //!
 //! A particle closer to a surface than its contact radius (half the cloth thickness) is pushed out
@@ -12,7 +12,7 @@ pub mod shell;
 pub use shell::ShellCollider;
 
 use crate::scene::{ColliderKind, ColliderSpec};
-use glam::{EulerRot, Quat, Vec3, Vec4};
+use glam::{EulerRot, Quat, Vec2, Vec3, Vec4};
 
 /// An analytic shape.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,6 +29,22 @@ pub enum Shape {
     },
     /// Solid capsule around the segment `start`–`end`.
     Capsule { start: Vec3, end: Vec3, radius: f32 },
+    /// Upright funnel wall: points within `half_thickness` of the cone frustum from the circle
+    /// of `radius` at `center` to the circle of `top_radius` at `height` above it.
+    Funnel {
+        center: Vec3,
+        radius: f32,
+        top_radius: f32,
+        height: f32,
+        half_thickness: f32,
+    },
+    /// Solid triangular prism, blade down: top face `half.x` × 2 wide at `half.y` above the
+    /// centre, blade at `half.y` below, `half.z` × 2 long; turned by `rotation`.
+    Wedge {
+        center: Vec3,
+        half: Vec3,
+        rotation: Quat,
+    },
 }
 
 /// A collider with its friction coefficient.
@@ -48,7 +64,10 @@ impl Shape {
     pub fn centre(&self) -> Vec3 {
         match *self {
             Shape::Plane { normal, offset } => normal * offset,
-            Shape::Sphere { center, .. } | Shape::Box { center, .. } => center,
+            Shape::Sphere { center, .. }
+            | Shape::Box { center, .. }
+            | Shape::Funnel { center, .. }
+            | Shape::Wedge { center, .. } => center,
             Shape::Capsule { start, end, .. } => (start + end) * 0.5,
         }
     }
@@ -83,6 +102,30 @@ impl Shape {
                 end: point(end),
                 radius,
             },
+            // A funnel stays upright: it follows the translation (its keyframed rotation is
+            // rejected by validation).
+            Shape::Funnel {
+                center,
+                radius,
+                top_radius,
+                height,
+                half_thickness,
+            } => Shape::Funnel {
+                center: point(center),
+                radius,
+                top_radius,
+                height,
+                half_thickness,
+            },
+            Shape::Wedge {
+                center,
+                half,
+                rotation: r,
+            } => Shape::Wedge {
+                center: point(center),
+                half,
+                rotation: rotation * r,
+            },
         }
     }
 }
@@ -115,10 +158,19 @@ impl Collider {
             ColliderKind::Box => Shape::Box {
                 center: Vec3::from(spec.center.expect("validated")),
                 half: Vec3::from(spec.size.expect("validated")) * 0.5,
-                rotation: spec.rotation.map_or(Quat::IDENTITY, |r| {
-                    let [x, y, z] = r.map(f32::to_radians);
-                    Quat::from_euler(EulerRot::XYZ, x, y, z)
-                }),
+                rotation: turn(spec.rotation),
+            },
+            ColliderKind::Wedge => Shape::Wedge {
+                center: Vec3::from(spec.center.expect("validated")),
+                half: Vec3::from(spec.size.expect("validated")) * 0.5,
+                rotation: turn(spec.rotation),
+            },
+            ColliderKind::Funnel => Shape::Funnel {
+                center: Vec3::from(spec.center.expect("validated")),
+                radius: spec.radius.expect("validated"),
+                top_radius: spec.top_radius.expect("validated"),
+                height: spec.height.expect("validated"),
+                half_thickness: 0.5 * spec.thickness.unwrap_or(0.01),
             },
             ColliderKind::Capsule => Shape::Capsule {
                 start: Vec3::from(spec.start.expect("validated")),
@@ -152,6 +204,21 @@ impl Collider {
                 let axis = end - start;
                 let t = ((p - start).dot(axis) / axis.length_squared().max(1e-12)).clamp(0.0, 1.0);
                 ball_distance(p - (start + axis * t), radius)
+            }
+            Shape::Funnel {
+                center,
+                radius,
+                top_radius,
+                height,
+                half_thickness,
+            } => funnel_distance(p - center, radius, top_radius, height, half_thickness),
+            Shape::Wedge {
+                center,
+                half,
+                rotation,
+            } => {
+                let (d, n) = wedge_distance(rotation.inverse() * (p - center), half);
+                (d, rotation * n)
             }
         }
     }
@@ -264,6 +331,104 @@ fn box_distance(p: Vec3, half: Vec3) -> (f32, Vec3) {
     let mut n = Vec3::ZERO;
     n[axis] = if p[axis] >= 0.0 { 1.0 } else { -1.0 };
     (q[axis], n)
+}
+
+/// Rotation from Euler degrees (X, then Y, then Z); none gives the identity.
+fn turn(degrees: Option<[f32; 3]>) -> Quat {
+    degrees.map_or(Quat::IDENTITY, |r| {
+        let [x, y, z] = r.map(f32::to_radians);
+        Quat::from_euler(EulerRot::XYZ, x, y, z)
+    })
+}
+
+/// Closest point to `q` on the segment `a`–`b` (2-D).
+#[inline]
+fn closest_on_segment(q: Vec2, a: Vec2, b: Vec2) -> Vec2 {
+    let ab = b - a;
+    let t = ((q - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+    a + ab * t
+}
+
+/// Signed distance from an upright funnel wall at the origin to `p`, and the outward normal:
+/// in the half-plane (r, y) through `p` and the axis, the wall is the segment from (radius, 0)
+/// to (top_radius, height), thickened by `half_thickness`.
+#[inline]
+fn funnel_distance(
+    p: Vec3,
+    radius: f32,
+    top_radius: f32,
+    height: f32,
+    half_thickness: f32,
+) -> (f32, Vec3) {
+    let r = (p.x * p.x + p.z * p.z).sqrt();
+    let radial = if r > 1e-9 {
+        Vec3::new(p.x / r, 0.0, p.z / r)
+    } else {
+        Vec3::X
+    };
+    let (a, b) = (Vec2::new(radius, 0.0), Vec2::new(top_radius, height));
+    let q = Vec2::new(r, p.y);
+    let off = q - closest_on_segment(q, a, b);
+    let len = off.length();
+    let n2 = if len > 1e-9 {
+        off / len
+    } else {
+        // On the wall's middle surface: the side facing away from the axis.
+        let e = (b - a).normalize();
+        Vec2::new(e.y, -e.x)
+    };
+    (len - half_thickness, radial * n2.x + Vec3::Y * n2.y)
+}
+
+/// Signed distance from a wedge of half extents `half` at the origin (blade down, along Z) to
+/// `p`, and the outward normal: the triangle's 2-D distance in XY extruded along Z.
+#[inline]
+fn wedge_distance(p: Vec3, half: Vec3) -> (f32, Vec3) {
+    // Triangle counter-clockwise: blade, top right, top left.
+    let corners = [
+        Vec2::new(0.0, -half.y),
+        Vec2::new(half.x, half.y),
+        Vec2::new(-half.x, half.y),
+    ];
+    let q = Vec2::new(p.x, p.y);
+    let mut best = (f32::MAX, Vec2::ZERO, Vec2::Y);
+    let mut inside = true;
+    for k in 0..3 {
+        let (a, b) = (corners[k], corners[(k + 1) % 3]);
+        let e = b - a;
+        let outward = Vec2::new(e.y, -e.x).normalize();
+        inside &= (q - a).dot(outward) <= 0.0;
+        let c = closest_on_segment(q, a, b);
+        let d = q.distance_squared(c);
+        if d < best.0 {
+            best = (d, c, outward);
+        }
+    }
+    let (d2, c, edge_normal) = best;
+    let d2 = d2.sqrt();
+    let n2 = if d2 > 1e-9 {
+        if inside {
+            (c - q) / d2
+        } else {
+            (q - c) / d2
+        }
+    } else {
+        edge_normal
+    };
+    let flat = if inside { -d2 } else { d2 };
+    let along = p.z.abs() - half.z;
+    let z = Vec3::Z * if p.z >= 0.0 { 1.0 } else { -1.0 };
+    if flat <= 0.0 && along <= 0.0 {
+        // Inside: the nearer of the side faces and the end caps.
+        return if flat >= along {
+            (flat, Vec3::new(n2.x, n2.y, 0.0))
+        } else {
+            (along, z)
+        };
+    }
+    let (u, v) = (flat.max(0.0), along.max(0.0));
+    let d = (u * u + v * v).sqrt();
+    (d, (Vec3::new(n2.x, n2.y, 0.0) * u + z * v) / d)
 }
 
 /// Penetration of the particles `q` into each collider.

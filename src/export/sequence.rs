@@ -36,7 +36,7 @@ pub fn garment_meshes(garments: &[GarmentRange], frames: &[Vec<Vec3>]) -> Vec<An
 /// Colour of analytic colliders in exports and previews (linear RGB).
 pub const COLLIDER_COLOUR: [f32; 3] = [0.45, 0.47, 0.52];
 
-/// Meshes of the scene's sphere, box and capsule colliders, so exports and previews show what
+/// Meshes of the scene's sphere, box, capsule, funnel and wedge colliders, so exports and previews show what
 /// the cloth meets: one frame for a static collider, one per time in `times` [s] for a keyframed
 /// one. Planes are left out: the preview's floor stands for them.
 pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<AnimatedMesh> {
@@ -49,18 +49,27 @@ pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<Animate
                 ColliderKind::Plane => return None,
                 ColliderKind::Sphere => rounded(v(c.center)?, v(c.center)?, c.radius?),
                 ColliderKind::Capsule => rounded(v(c.start)?, v(c.end)?, c.radius?),
-                ColliderKind::Box => {
+                ColliderKind::Box | ColliderKind::Wedge => {
                     // Built at the origin, then turned and placed like the collider.
-                    let (p, t) = cuboid(Vec3::ZERO, v(c.size)? * 0.5);
+                    let half = v(c.size)? * 0.5;
+                    let (p, t) = if c.kind == ColliderKind::Box {
+                        cuboid(Vec3::ZERO, half)
+                    } else {
+                        prism(half)
+                    };
                     let shape = crate::collide::Collider::from_spec(c).shape;
-                    let crate::collide::Shape::Box {
+                    let (crate::collide::Shape::Box {
                         center, rotation, ..
-                    } = shape
+                    }
+                    | crate::collide::Shape::Wedge {
+                        center, rotation, ..
+                    }) = shape
                     else {
                         return None;
                     };
                     (p.iter().map(|q| center + rotation * *q).collect(), t)
                 }
+                ColliderKind::Funnel => frustum(v(c.center)?, c.radius?, c.top_radius?, c.height?),
             };
             let frames = if c.keyframes.is_empty() {
                 vec![positions]
@@ -122,6 +131,46 @@ fn rounded(start: Vec3, end: Vec3, radius: f32) -> Mesh {
         for t in &mut triangles {
             t.swap(1, 2);
         }
+    }
+    (positions, triangles)
+}
+
+/// A wedge of half extents `half` at the origin: blade down along Z, faces outward.
+fn prism(half: Vec3) -> Mesh {
+    let tri = [
+        Vec3::new(0.0, -half.y, 0.0),
+        Vec3::new(half.x, half.y, 0.0),
+        Vec3::new(-half.x, half.y, 0.0),
+    ];
+    let positions: Vec<Vec3> = [-half.z, half.z]
+        .iter()
+        .flat_map(|&z| tri.iter().map(move |p| Vec3::new(p.x, p.y, z)))
+        .collect();
+    // Caps (back −Z: 0 1 2 seen from −Z is clockwise, so reversed), then the three sides.
+    let mut triangles = vec![[0, 2, 1], [3, 4, 5]];
+    for k in 0..3u32 {
+        let (a, b) = (k, (k + 1) % 3);
+        triangles.push([a, b, b + 3]);
+        triangles.push([a, b + 3, a + 3]);
+    }
+    (positions, triangles)
+}
+
+/// An upright funnel wall (a cone frustum surface, open at both ends) around `centre`.
+fn frustum(centre: Vec3, radius: f32, top_radius: f32, height: f32) -> Mesh {
+    let segments = 48u32;
+    let mut positions = Vec::new();
+    for (r, y) in [(radius, 0.0), (top_radius, height)] {
+        for s in 0..segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            positions.push(centre + Vec3::new(r * phi.cos(), y, r * phi.sin()));
+        }
+    }
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        let (a, b) = (s, (s + 1) % segments);
+        triangles.push([a, b + segments, b]);
+        triangles.push([a, a + segments, b + segments]);
     }
     (positions, triangles)
 }

@@ -79,7 +79,7 @@ impl GpuSimulation {
                 reason: "attachments are simulated on the CPU backend only so far".into(),
             });
         }
-        let turned = |c: &crate::collide::Collider| matches!(c.shape, Shape::Box { rotation, .. } if rotation != glam::Quat::IDENTITY);
+        let turned = |c: &crate::collide::Collider| matches!(c.shape, Shape::Box { rotation, .. } | Shape::Wedge { rotation, .. } if rotation != glam::Quat::IDENTITY);
         if sim.moving_colliders() || sim.colliders.iter().any(turned) {
             return Err(Error::Gpu {
                 reason: "moving (keyframed) and rotated colliders are simulated on the CPU backend only so far".into(),
@@ -170,6 +170,20 @@ impl GpuSimulation {
                     Shape::Sphere { center, radius } => (1, radius, 0.0, center, Vec3::ZERO),
                     Shape::Box { center, half, .. } => (2, 0.0, 0.0, center, half),
                     Shape::Capsule { start, end, radius } => (3, radius, 0.0, start, end),
+                    Shape::Funnel {
+                        center,
+                        radius,
+                        top_radius,
+                        height,
+                        half_thickness,
+                    } => (
+                        4,
+                        radius,
+                        top_radius,
+                        center,
+                        Vec3::new(height, half_thickness, 0.0),
+                    ),
+                    Shape::Wedge { center, half, .. } => (5, 0.0, 0.0, center, half),
                 };
                 GpuCollider {
                     kind,

@@ -371,13 +371,20 @@ pub enum ColliderKind {
     Box,
     /// Solid capsule: every point within `radius` of the segment from `start` to `end`.
     Capsule,
+    /// A funnel (thesis §5.3.5): an upright cone frustum wall of `thickness`, its spout of
+    /// `radius` centred on `center`, widening to `top_radius` at `height` above it; open at both
+    /// ends, so cloth can fall through.
+    Funnel,
+    /// A wedge: a triangular prism with its blade down, `size` = [width of the top face, height,
+    /// length along Z] around `center`, turned by `rotation`.
+    Wedge,
 }
 
 /// A static analytic collider. Fields that do not belong to `kind` are rejected by validation.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColliderSpec {
-    /// `"plane"`, `"sphere"`, `"box"` or `"capsule"`. Required.
+    /// `"plane"`, `"sphere"`, `"box"`, `"capsule"`, `"funnel"` or `"wedge"`. Required.
     pub kind: ColliderKind,
     /// Plane: a point on the plane [m]. Default the origin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -399,7 +406,17 @@ pub struct ColliderSpec {
     pub start: Option<[f32; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub end: Option<[f32; 3]>,
-    /// Box: orientation, Euler degrees (X, Y, Z) about its centre. Default none (axis-aligned).
+    /// Funnel: radius of the wide top [m]. Required for funnels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub top_radius: Option<f32>,
+    /// Funnel: height from the spout to the top [m]. Required for funnels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height: Option<f32>,
+    /// Funnel: wall thickness [m]. Default 0.01.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness: Option<f32>,
+    /// Box, wedge: orientation, Euler degrees (X, Y, Z) about its centre. Default none
+    /// (axis-aligned).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotation: Option<[f32; 3]>,
     /// A keyframed rigid motion of the collider about its centre (a plane's point, a capsule's

@@ -343,12 +343,20 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
         ("start", c.start.is_some()),
         ("end", c.end.is_some()),
         ("rotation", c.rotation.is_some()),
+        ("top_radius", c.top_radius.is_some()),
+        ("height", c.height.is_some()),
+        ("thickness", c.thickness.is_some()),
     ];
     let (name, allowed): (&str, &[&str]) = match c.kind {
         ColliderKind::Plane => ("a plane", &["point", "normal"]),
         ColliderKind::Sphere => ("a sphere", &["center", "radius"]),
         ColliderKind::Box => ("a box", &["center", "size", "rotation"]),
         ColliderKind::Capsule => ("a capsule", &["start", "end", "radius"]),
+        ColliderKind::Funnel => (
+            "a funnel",
+            &["center", "radius", "top_radius", "height", "thickness"],
+        ),
+        ColliderKind::Wedge => ("a wedge", &["center", "size", "rotation"]),
     };
     if let Some((field, _)) = given.iter().find(|(f, set)| *set && !allowed.contains(f)) {
         return Err((
@@ -370,6 +378,12 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
         finite3(r).map_err(|r| ("rotation", r))?;
     }
     check_keyframes(&c.keyframes, "keyframes")?;
+    if c.kind == ColliderKind::Funnel && c.keyframes.iter().any(|k| k.rotation != [0.0; 3]) {
+        return Err((
+            "keyframes",
+            "a funnel stays upright: its keyframes may translate it, not turn it".into(),
+        ));
+    }
     match c.kind {
         ColliderKind::Plane => {
             if let Some(p) = c.point {
@@ -386,7 +400,18 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
             need(c.center, "center")?;
             radius()?;
         }
-        ColliderKind::Box => {
+        ColliderKind::Funnel => {
+            need(c.center, "center")?;
+            radius()?;
+            for (field, v) in [("top_radius", c.top_radius), ("height", c.height)] {
+                let v = v.ok_or((field, format!("{name} needs {field}")))?;
+                positive(v).map_err(|r| (field, r))?;
+            }
+            if let Some(t) = c.thickness {
+                positive(t).map_err(|r| ("thickness", r))?;
+            }
+        }
+        ColliderKind::Box | ColliderKind::Wedge => {
             need(c.center, "center")?;
             let size = need(c.size, "size")?;
             if size.iter().any(|&e| e <= 0.0) {
