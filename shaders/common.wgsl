@@ -9,7 +9,7 @@ struct Params {
     springs: u32,
     structural: u32,           // structural springs at the head of `springs`
     colliders: u32,
-    range_start: u32,          // colour range of a sweep
+    range_start: u32,          // colour range of a sweep; a substep's targets for `attach`
     range_end: u32,
     predict_next: u32,         // finish: also predict the next substep
     _pad: u32,
@@ -97,6 +97,11 @@ const TINY_LENGTH: f32 = 1e-12;
 @group(2) @binding(4) var<storage, read_write> pc_cursor: array<atomic<u32>>;
 @group(2) @binding(5) var<storage, read_write> pc_items: array<u32>;
 @group(2) @binding(6) var<storage, read_write> pc_push: array<vec4<f32>>;
+
+// Attachments: the attached particles (storage index) and, per substep of the frame, where each
+// goes (uploaded by the CPU every frame).
+@group(2) @binding(7) var<storage, read> attach_particle: array<u32>;
+@group(2) @binding(8) var<storage, read> attach_target: array<vec4<f32>>;
 
 // L / |e| for an edge of squared length `length_squared` (0 when too short to have a direction).
 fn spring_projection_scale(length_squared: f32, rest: f32) -> f32 {

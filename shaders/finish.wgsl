@@ -248,3 +248,17 @@ fn finish_static(@builtin(global_invocation_id) id: vec3<u32>) {
     x[i] = x[i] + delta[i];
     delta[i] = vec4<f32>(0.0);
 }
+
+// Attached particles to where their targets are at the end of the coming substep, with the
+// velocity that took them there (Simulation::place_attachments on the CPU).
+@compute @workgroup_size(64)
+fn attach(@builtin(global_invocation_id) id: vec3<u32>) {
+    let k = params.range_start + id.x;
+    if (k >= params.range_end) {
+        return;
+    }
+    let p = attach_particle[id.x];
+    let goal = attach_target[k];
+    velocity[p] = (goal - x[p]) * params.inv_step;
+    x[p] = goal;
+}

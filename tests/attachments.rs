@@ -1,6 +1,6 @@
 //! Attachments: particles on a keyframed rail or a turning pivot sit exactly where the analytic
 //! motion puts them after every frame, and the cloth follows; particles tied to the mannequin's
-//! skin ride it rigidly; bad attachments are input errors; the GPU backend says it cannot.
+//! skin ride it rigidly; bad attachments are input errors; the GPU carries a curtain as the CPU does.
 
 mod common;
 
@@ -201,6 +201,62 @@ fn bad_attachments_are_input_errors() {
 }
 
 #[test]
-fn the_gpu_backend_refuses_attachments() {
-    common::assert_gpu_refuses(CURTAIN, "attachments");
+fn the_gpu_carries_the_curtain_as_the_cpu_does() {
+    // The curtain on its rail on both backends (lavapipe here and in CI), 90 frames: the
+    // attached row exactly on the rail throughout, and the same positions within float
+    // tolerance over the first 30 frames. (Measured: 2e-7 m at frame 11, 1e-5 m at frame 31;
+    // then the dragged curtain buckles into folds and rounding differences grow tenfold every
+    // 15 frames, to 1 cm by frame 81: the motion is chaotic, as buckling is.)
+    let ctx = match drape::gpu::GpuContext::new(false) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            return;
+        }
+    };
+    let scene = common::scene(CURTAIN);
+    let mut cpu = Simulation::new(&scene);
+    let mut on_gpu = Simulation::new(&scene);
+    let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    let rest: Vec<(usize, Vec3)> = on_gpu
+        .attachments
+        .list
+        .iter()
+        .map(|a| match a.target {
+            Target::Keyframed { rest, .. } => (a.particle as usize, rest),
+            _ => panic!("keyframed"),
+        })
+        .collect();
+    let (mut worst, mut off_rail) = (0.0f32, 0.0f32);
+    for frame in 1..=scene.frames {
+        cpu.step_frame();
+        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        let gap = cpu
+            .state
+            .positions
+            .iter()
+            .zip(&on_gpu.state.positions)
+            .map(|(p, q)| (*p - *q).length())
+            .fold(0.0, f32::max);
+        if frame <= 30 {
+            worst = worst.max(gap);
+        }
+        let t = (frame as f32 / 60.0).min(1.0);
+        for &(i, r) in &rest {
+            let expected = r + Vec3::new(0.6 * t, 0.0, 0.0);
+            off_rail = off_rail.max(on_gpu.state.positions[i].truncate().distance(expected));
+        }
+    }
+    eprintln!(
+        "curtain: CPU and GPU differ by at most {worst:.2e} m over 30 frames; GPU rail error {off_rail:.2e} m"
+    );
+    assert!(worst < 1e-4, "CPU and GPU positions differ by {worst} m");
+    assert!(
+        off_rail < 1e-5,
+        "attached particles {off_rail} m from the rail on the GPU"
+    );
+    assert!(
+        on_gpu.driven_energy() > 0.0,
+        "the rail's motion counts as supplied energy"
+    );
 }

@@ -26,7 +26,7 @@ pub const KERNEL_FILES: [(&str, &str, &[&str]); 6] = [
     (
         "finish.wgsl",
         include_str!("../../shaders/finish.wgsl"),
-        &["finish", "finish_static"],
+        &["finish", "finish_static", "attach"],
     ),
     (
         "residual.wgsl",
@@ -64,7 +64,8 @@ const READ_ONLY: std::ops::RangeInclusive<u32> = 7..=13;
 pub struct Kernels {
     pub group0: wgpu::BindGroupLayout,
     pub group1: wgpu::BindGroupLayout,
-    /// Particle–particle collisions: a uniform, one read-only and five read-write buffers.
+    /// Particle–particle collisions (a uniform, one read-only and five read-write buffers) and
+    /// attachments (two read-only buffers).
     pub group2: wgpu::BindGroupLayout,
     pub predict: wgpu::ComputePipeline,
     pub project: wgpu::ComputePipeline,
@@ -74,6 +75,7 @@ pub struct Kernels {
     pub pbd: wgpu::ComputePipeline,
     pub finish: wgpu::ComputePipeline,
     pub finish_static: wgpu::ComputePipeline,
+    pub attach: wgpu::ComputePipeline,
     pub residual_partial: wgpu::ComputePipeline,
     pub residual_total: wgpu::ComputePipeline,
     pub pc_clear: wgpu::ComputePipeline,
@@ -134,6 +136,7 @@ impl Kernels {
         }];
         contacts.push(storage(1, true));
         contacts.extend((2..=6).map(|b| storage(b, false)));
+        contacts.extend((7..=8).map(|b| storage(b, true)));
         let group2 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("drape particle collisions"),
             entries: &contacts,
@@ -181,6 +184,7 @@ impl Kernels {
             pbd: pipeline("pbd"),
             finish: pipeline("finish"),
             finish_static: pipeline("finish_static"),
+            attach: pipeline("attach"),
             residual_partial: pipeline("residual_partial"),
             residual_total: pipeline("residual_total"),
             pc_clear: pipeline("pc_clear"),

@@ -26,6 +26,7 @@ const REDUCE_GROUP: u32 = 256;
 const PARAMS_NEXT: u32 = 0;
 const PARAMS_LAST: u32 = 1;
 const PARAMS_COLOUR: u32 = 2;
+// Then one slot per substep for `attach`: that substep's range of attachment targets.
 
 /// GPU buffers and bind groups of one simulation.
 pub struct GpuSimulation {
@@ -41,6 +42,11 @@ pub struct GpuSimulation {
     group2: wgpu::BindGroup,
     /// Hash buckets of the particle-collision grid, or None without particle collisions.
     contact_table: Option<u32>,
+    /// Attached particles, and their targets for every substep of a frame (refreshed per frame).
+    attached: u32,
+    attach_target: wgpu::Buffer,
+    /// First uniform slot of the per-substep `attach` ranges.
+    attach_slots: u32,
     particles: u32,
     springs: u32,
     structural: u32,
@@ -72,11 +78,6 @@ impl GpuSimulation {
         if sim.tears() {
             return Err(Error::Gpu {
                 reason: "tearing is simulated on the CPU backend only so far".into(),
-            });
-        }
-        if !sim.attachments.is_empty() {
-            return Err(Error::Gpu {
-                reason: "attachments are simulated on the CPU backend only so far".into(),
             });
         }
         let turned = |c: &crate::collide::Collider| matches!(c.shape, Shape::Box { rotation, .. } | Shape::Wedge { rotation, .. } if rotation != glam::Quat::IDENTITY);
@@ -219,7 +220,9 @@ impl GpuSimulation {
             keep,
             omega: settings.omega,
         };
-        let mut params = vec![0u8; PARAMS_STRIDE as usize * (2 + colour_ranges.len())];
+        let attached = sim.attachments.list.len() as u32;
+        let attach_slots = PARAMS_COLOUR + colour_ranges.len() as u32;
+        let mut params = vec![0u8; PARAMS_STRIDE as usize * (attach_slots + sim.substeps) as usize];
         let mut put = |slot: u32, p: GpuParams| {
             let at = (slot as u64 * PARAMS_STRIDE) as usize;
             params[at..at + std::mem::size_of::<GpuParams>()]
@@ -239,6 +242,16 @@ impl GpuSimulation {
                 GpuParams {
                     range_start: start,
                     range_end: end,
+                    ..base
+                },
+            );
+        }
+        for k in 0..sim.substeps {
+            put(
+                attach_slots + k,
+                GpuParams {
+                    range_start: k * attached,
+                    range_end: (k + 1) * attached,
                     ..base
                 },
             );
@@ -345,12 +358,31 @@ impl GpuSimulation {
         let pc_cursor = init("pc_cursor", &vec![0u8; 4 * (table + 1)], rw);
         let pc_items = init("pc_items", &vec![0u8; 4 * per_particle], rw);
         let pc_push = init("pc_push", &vec![0u8; 16 * per_particle], rw);
+        let particles_attached: Vec<u32> =
+            sim.attachments.list.iter().map(|a| a.particle).collect();
+        let attach_particle = init(
+            "attach_particle",
+            bytemuck::cast_slice(&particles_attached),
+            read,
+        );
+        let attach_target = init(
+            "attach_target",
+            &vec![0u8; 16 * (attached * sim.substeps).max(1) as usize],
+            read | wgpu::BufferUsages::COPY_DST,
+        );
         let mut entries = vec![wgpu::BindGroupEntry {
             binding: 0,
             resource: contacts.as_entire_binding(),
         }];
         for (k, b) in [
-            &cells, &pc_bucket, &pc_start, &pc_cursor, &pc_items, &pc_push,
+            &cells,
+            &pc_bucket,
+            &pc_start,
+            &pc_cursor,
+            &pc_items,
+            &pc_push,
+            &attach_particle,
+            &attach_target,
         ]
         .iter()
         .enumerate()
@@ -370,6 +402,9 @@ impl GpuSimulation {
             kernels,
             group2,
             contact_table: collisions.map(|_| table as u32),
+            attached,
+            attach_target,
+            attach_slots,
             x,
             velocity,
             residuals,
@@ -398,6 +433,19 @@ impl GpuSimulation {
     /// Runs one frame on the GPU and copies positions, velocities and (when `sim` records them)
     /// per-sweep residuals back into `sim`.
     pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
+        // Where the attached particles go this frame, substep by substep (also advances the
+        // simulation's clock).
+        let targets: Vec<Vec4> = sim
+            .drive_frame()
+            .iter()
+            .flatten()
+            .map(|(_, t)| t.extend(0.0))
+            .collect();
+        if self.attached > 0 {
+            self.ctx
+                .queue
+                .write_buffer(&self.attach_target, 0, bytemuck::cast_slice(&targets));
+        }
         let encoder = self.record_frame(sim);
         let n = self.particles as u64 * 16;
         let mut encoder = encoder;
@@ -482,6 +530,15 @@ impl GpuSimulation {
             dispatch(&mut pass, &k.predict, PARAMS_NEXT, n, GROUP);
         }
         for substep in 0..sim.substeps {
+            if self.attached > 0 {
+                dispatch(
+                    &mut pass,
+                    &k.attach,
+                    self.attach_slots + substep,
+                    self.attached,
+                    GROUP,
+                );
+            }
             for _ in 0..s.iterations {
                 let sweeps = |pass: &mut wgpu::ComputePass| {
                     if recording {

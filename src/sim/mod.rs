@@ -265,6 +265,38 @@ impl Simulation {
         }
     }
 
+    /// Where the attached particles go at the end of each substep of the next frame (storage
+    /// index, target), substep by substep, advancing the clock by a frame as if it ran: for a
+    /// backend that runs the frame elsewhere (the GPU) and copies the state back.
+    pub fn drive_frame(&mut self) -> Vec<Vec<(u32, Vec3)>> {
+        let per_second = self.substeps as f32 * self.fps;
+        let mut last: Vec<Vec3> = self
+            .attachments
+            .list
+            .iter()
+            .map(|a| self.state.positions[a.particle as usize].truncate())
+            .collect();
+        let frame = (1..=self.substeps as u64)
+            .map(|k| {
+                let t = (self.elapsed_substeps + k) as f32 / per_second;
+                self.attachments
+                    .list
+                    .iter()
+                    .zip(&mut last)
+                    .map(|(a, last)| {
+                        let target = self.attachments.position(a, t, self.fps);
+                        self.driven_speed =
+                            self.driven_speed.max(target.distance(*last) / self.step);
+                        *last = target;
+                        (a.particle, target)
+                    })
+                    .collect()
+            })
+            .collect();
+        self.elapsed_substeps += self.substeps as u64;
+        frame
+    }
+
     /// Kinetic energy attachments, moving colliders and characters may have given the garments
     /// so far: all of their mass at the fastest speed any attached particle, collider or skin
     /// has been driven [J]. The stability rule counts it as released energy, as it does the
