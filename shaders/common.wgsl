@@ -12,7 +12,7 @@ struct Params {
     range_start: u32,          // colour range of a sweep; a substep's targets for `attach`
     range_end: u32,
     predict_next: u32,         // finish: also predict the next substep
-    _pad: u32,
+    collider_base: u32,        // finish: this substep's first collider
     step: f32,                 // h [s]
     inv_step: f32,             // 1/h
     keep: f32,                 // velocity kept per step, exp(-damping h)
@@ -48,7 +48,7 @@ struct Tether {
     rest: f32,
 }
 
-// An analytic collider (48 bytes): kind 0 plane (normal, offset), 1 sphere (center, radius),
+// An analytic collider (80 bytes): kind 0 plane (normal, offset), 1 sphere (center, radius),
 // 2 axis-aligned box (center, half extents), 3 capsule (start, end, radius), 4 upright funnel
 // (spout center, radius, top radius in offset, second = (height, half thickness)), 5 wedge
 // (center, half extents; blade down along Z).
@@ -59,6 +59,14 @@ struct Collider {
     offset: f32,
     vector: vec4<f32>,         // plane normal, sphere or box center, capsule start
     second: vec4<f32>,         // box half extents, capsule end; w = 1: swept test on
+    rotation: vec4<f32>,       // box, wedge: orientation (unit quaternion x, y, z, w)
+    moved: vec4<f32>,          // motion over the substep (xyz)
+}
+
+// `v` turned by the unit quaternion `q`.
+fn quat_rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    let t = 2.0 * cross(q.xyz, v);
+    return v + q.w * t + cross(q.xyz, t);
 }
 
 // Particle–particle collisions: constants (uniform) of the hash grid.

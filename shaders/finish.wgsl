@@ -120,13 +120,17 @@ fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
             return vec4<f32>(c.vector.xyz, dot(c.vector.xyz, p) - c.offset);
         }
         case 2u: {
-            return box_distance(p - c.vector.xyz, c.second.xyz);
+            let inverse = vec4<f32>(-c.rotation.xyz, c.rotation.w);
+            let d = box_distance(quat_rotate(inverse, p - c.vector.xyz), c.second.xyz);
+            return vec4<f32>(quat_rotate(c.rotation, d.xyz), d.w);
         }
         case 4u: {
             return funnel_distance(p - c.vector.xyz, c.radius, c.offset, c.second.x, c.second.y);
         }
         case 5u: {
-            return wedge_distance(p - c.vector.xyz, c.second.xyz);
+            let inverse = vec4<f32>(-c.rotation.xyz, c.rotation.w);
+            let d = wedge_distance(quat_rotate(inverse, p - c.vector.xyz), c.second.xyz);
+            return vec4<f32>(quat_rotate(c.rotation, d.xyz), d.w);
         }
         case 3u: {
             let axis = c.second.xyz - c.vector.xyz;
@@ -140,11 +144,13 @@ fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
 }
 
 // The fraction of the step at which a particle leaving `x` (outside) by `d` first comes within
-// `radius` of a static collider, when its end point has passed back out; 2 when it does not
-// (sphere tracing along the path, as Collider::first_contact on the CPU).
+// `radius` of a collider, following its path relative to the collider, when its end point has
+// passed back out; 2 when it does not (sphere tracing, as Collider::first_contact on the CPU).
 fn first_contact(c: Collider, x: vec3<f32>, d: vec3<f32>, radius: f32) -> f32 {
-    let length = length(d);
-    let begin = collider_distance(c, x);
+    // Relative to the collider's pose at the end of the step: from x + moved to x + d.
+    let moved = c.moved.xyz;
+    let length = length(d - moved);
+    let begin = collider_distance(c, x + moved);
     let start = begin.w - radius;
     if (start >= length || length < 1e-9) {
         return 2.0;
@@ -163,7 +169,7 @@ fn first_contact(c: Collider, x: vec3<f32>, d: vec3<f32>, radius: f32) -> f32 {
     var s = 0.0;
     var touch = 2.0;
     for (var k = 0; k < 64; k++) {
-        let dist = collider_distance(c, x + d * s).w;
+        let dist = collider_distance(c, x + d * s + moved * (1.0 - s)).w;
         if (touch > 1.0 && dist - radius <= 1e-6) {
             touch = s;
         } else if (touch <= 1.0 && dist <= 0.0) {
@@ -188,7 +194,8 @@ fn collider_resolve(c: Collider, xi: vec4<f32>, d_in: vec4<f32>, radius: f32) ->
     if (c.second.w > 0.5) {
         let s = first_contact(c, xi.xyz, d.xyz, radius);
         if (s <= 1.0) {
-            d = vec4<f32>(d.xyz * s, 0.0);
+            // Stop at the touching point of the path, carried along with the collider.
+            d = vec4<f32>(d.xyz * s + c.moved.xyz * (1.0 - s), 0.0);
         }
     }
     let hit = collider_distance(c, (xi + d).xyz);
@@ -225,7 +232,7 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
         d = d + tether_correction((xi - x[t.pin]) + (d - target_delta[t.pin]), t.rest);
     }
     for (var c = 0u; c < params.colliders; c = c + 1u) {
-        d = collider_resolve(colliders[c], xi, d, particle[i].contact_radius);
+        d = collider_resolve(colliders[params.collider_base + c], xi, d, particle[i].contact_radius);
     }
     x[i] = xi + d;
     velocity[i] = d * params.inv_step;

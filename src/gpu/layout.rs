@@ -17,7 +17,9 @@ pub struct GpuParams {
     pub range_start: u32,
     pub range_end: u32,
     pub predict_next: u32,
-    pub _pad: u32,
+    /// `finish`: index of this substep's first collider (colliders that move have one pose
+    /// per substep).
+    pub collider_base: u32,
     pub step: f32,
     pub inv_step: f32,
     pub keep: f32,
@@ -36,7 +38,8 @@ pub struct GpuParticle {
     pub contact_radius: f32,
 }
 
-/// An analytic collider (WGSL `Collider`): kind 0 plane, 1 sphere, 2 box, 3 capsule.
+/// An analytic collider (WGSL `Collider`): kind 0 plane, 1 sphere, 2 box, 3 capsule, 4 funnel,
+/// 5 wedge.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct GpuCollider {
@@ -50,6 +53,10 @@ pub struct GpuCollider {
     pub vector: [f32; 4],
     /// Box half extents or capsule end; w = 1 when the swept test is on.
     pub second: [f32; 4],
+    /// Box and wedge orientation, a unit quaternion (x, y, z, w).
+    pub rotation: [f32; 4],
+    /// How far the collider moved over the substep [m] (xyz; zero when static).
+    pub moved: [f32; 4],
 }
 
 /// Bytes between two dispatches' parameters: wgpu's minimum uniform offset alignment.
@@ -67,7 +74,7 @@ pub struct GpuContacts {
 
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuParticle>() == 16);
-const _: () = assert!(std::mem::size_of::<GpuCollider>() == 48);
+const _: () = assert!(std::mem::size_of::<GpuCollider>() == 80);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::Slot>() == 12);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelSpring>() == 12);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelTether>() == 12);

@@ -21,12 +21,11 @@ const GROUP: u32 = 64;
 /// Threads per workgroup of the residual reduction.
 const REDUCE_GROUP: u32 = 256;
 
-/// Uniform slots: 0 = whole range, predict the next substep; 1 = last substep of a frame;
-/// 2 + c = colour c's range.
+/// Uniform slots: 0 = whole range; 1 + c = colour c's range; then one slot per substep for
+/// `attach` (that substep's attachment targets) and one per substep for `finish` (its colliders'
+/// poses, and whether it predicts the next substep).
 const PARAMS_NEXT: u32 = 0;
-const PARAMS_LAST: u32 = 1;
-const PARAMS_COLOUR: u32 = 2;
-// Then one slot per substep for `attach`: that substep's range of attachment targets.
+const PARAMS_COLOUR: u32 = 1;
 
 /// GPU buffers and bind groups of one simulation.
 pub struct GpuSimulation {
@@ -47,12 +46,67 @@ pub struct GpuSimulation {
     attach_target: wgpu::Buffer,
     /// First uniform slot of the per-substep `attach` ranges.
     attach_slots: u32,
+    /// First uniform slot of the per-substep `finish` parameters.
+    finish_slots: u32,
+    /// The colliders, one pose per substep when some move (refreshed per frame).
+    colliders: wgpu::Buffer,
+    moving_colliders: bool,
     particles: u32,
     springs: u32,
     structural: u32,
     colour_ranges: Vec<(u32, u32)>,
     /// Sweeps per frame, each with a residual when recording.
     sweeps_per_frame: u32,
+}
+
+/// A collider as the kernels read it.
+fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
+    let mut rotation = glam::Quat::IDENTITY;
+    let (kind, radius, offset, vector, second) = match c.shape {
+        Shape::Plane { normal, offset } => (0, 0.0, offset, normal, Vec3::ZERO),
+        Shape::Sphere { center, radius } => (1, radius, 0.0, center, Vec3::ZERO),
+        Shape::Box {
+            center,
+            half,
+            rotation: r,
+        } => {
+            rotation = r;
+            (2, 0.0, 0.0, center, half)
+        }
+        Shape::Capsule { start, end, radius } => (3, radius, 0.0, start, end),
+        Shape::Funnel {
+            center,
+            radius,
+            top_radius,
+            height,
+            half_thickness,
+        } => (
+            4,
+            radius,
+            top_radius,
+            center,
+            Vec3::new(height, half_thickness, 0.0),
+        ),
+        Shape::Wedge {
+            center,
+            half,
+            rotation: r,
+        } => {
+            rotation = r;
+            (5, 0.0, 0.0, center, half)
+        }
+    };
+    GpuCollider {
+        kind,
+        friction: c.friction,
+        radius,
+        offset,
+        vector: vector.extend(0.0).to_array(),
+        // w: 1 when the swept test is on.
+        second: second.extend(if c.swept { 1.0 } else { 0.0 }).to_array(),
+        rotation: rotation.to_array(),
+        moved: c.moved.extend(0.0).to_array(),
+    }
 }
 
 fn groups(count: u32, size: u32) -> u32 {
@@ -78,12 +132,6 @@ impl GpuSimulation {
         if sim.tears() {
             return Err(Error::Gpu {
                 reason: "tearing is simulated on the CPU backend only so far".into(),
-            });
-        }
-        let turned = |c: &crate::collide::Collider| matches!(c.shape, Shape::Box { rotation, .. } | Shape::Wedge { rotation, .. } if rotation != glam::Quat::IDENTITY);
-        if sim.moving_colliders() || sim.colliders.iter().any(turned) {
-            return Err(Error::Gpu {
-                reason: "moving (keyframed) and rotated colliders are simulated on the CPU backend only so far".into(),
             });
         }
         let device = &ctx.device;
@@ -162,42 +210,17 @@ impl GpuSimulation {
             read,
         );
         let tethers = init("tethers", bytemuck::cast_slice(&model.tethers), read);
-        let colliders: Vec<GpuCollider> = sim
-            .colliders
-            .iter()
-            .map(|c| {
-                let (kind, radius, offset, vector, second) = match c.shape {
-                    Shape::Plane { normal, offset } => (0, 0.0, offset, normal, Vec3::ZERO),
-                    Shape::Sphere { center, radius } => (1, radius, 0.0, center, Vec3::ZERO),
-                    Shape::Box { center, half, .. } => (2, 0.0, 0.0, center, half),
-                    Shape::Capsule { start, end, radius } => (3, radius, 0.0, start, end),
-                    Shape::Funnel {
-                        center,
-                        radius,
-                        top_radius,
-                        height,
-                        half_thickness,
-                    } => (
-                        4,
-                        radius,
-                        top_radius,
-                        center,
-                        Vec3::new(height, half_thickness, 0.0),
-                    ),
-                    Shape::Wedge { center, half, .. } => (5, 0.0, 0.0, center, half),
-                };
-                GpuCollider {
-                    kind,
-                    friction: c.friction,
-                    radius,
-                    offset,
-                    vector: vector.extend(0.0).to_array(),
-                    // w: 1 when the swept test is on.
-                    second: second.extend(if c.swept { 1.0 } else { 0.0 }).to_array(),
-                }
-            })
+        // Colliders that move have one pose per substep, refreshed every frame.
+        let moving = sim.moving_colliders();
+        let collider_count = sim.colliders.len() as u32;
+        let colliders: Vec<GpuCollider> = (0..if moving { sim.substeps } else { 1 })
+            .flat_map(|_| sim.colliders.iter().map(gpu_collider))
             .collect();
-        let colliders_buffer = init("colliders", bytemuck::cast_slice(&colliders), read);
+        let colliders_buffer = init(
+            "colliders",
+            bytemuck::cast_slice(&colliders),
+            read | wgpu::BufferUsages::COPY_DST,
+        );
 
         let colour_ranges: Vec<(u32, u32)> = model
             .colour_ranges
@@ -210,11 +233,11 @@ impl GpuSimulation {
             particles: n as u32,
             springs: model.springs.len() as u32,
             structural: model.structural_springs as u32,
-            colliders: colliders.len() as u32,
+            colliders: collider_count,
             range_start: 0,
             range_end: n as u32,
             predict_next: 1,
-            _pad: 0,
+            collider_base: 0,
             step: h,
             inv_step: 1.0 / h,
             keep,
@@ -222,20 +245,14 @@ impl GpuSimulation {
         };
         let attached = sim.attachments.list.len() as u32;
         let attach_slots = PARAMS_COLOUR + colour_ranges.len() as u32;
-        let mut params = vec![0u8; PARAMS_STRIDE as usize * (attach_slots + sim.substeps) as usize];
+        let finish_slots = attach_slots + sim.substeps;
+        let mut params = vec![0u8; PARAMS_STRIDE as usize * (finish_slots + sim.substeps) as usize];
         let mut put = |slot: u32, p: GpuParams| {
             let at = (slot as u64 * PARAMS_STRIDE) as usize;
             params[at..at + std::mem::size_of::<GpuParams>()]
                 .copy_from_slice(bytemuck::bytes_of(&p));
         };
         put(PARAMS_NEXT, base);
-        put(
-            PARAMS_LAST,
-            GpuParams {
-                predict_next: 0,
-                ..base
-            },
-        );
         for (c, &(start, end)) in colour_ranges.iter().enumerate() {
             put(
                 PARAMS_COLOUR + c as u32,
@@ -252,6 +269,16 @@ impl GpuSimulation {
                 GpuParams {
                     range_start: k * attached,
                     range_end: (k + 1) * attached,
+                    ..base
+                },
+            );
+            // `finish` of substep k: its colliders' poses, and whether a substep follows in
+            // this frame (then it predicts that one).
+            put(
+                finish_slots + k,
+                GpuParams {
+                    collider_base: if moving { k * collider_count } else { 0 },
+                    predict_next: (k + 1 < sim.substeps) as u32,
                     ..base
                 },
             );
@@ -405,6 +432,9 @@ impl GpuSimulation {
             attached,
             attach_target,
             attach_slots,
+            finish_slots,
+            colliders: colliders_buffer,
+            moving_colliders: moving,
             x,
             velocity,
             residuals,
@@ -435,16 +465,28 @@ impl GpuSimulation {
     pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
         // Where the attached particles go this frame, substep by substep (also advances the
         // simulation's clock).
-        let targets: Vec<Vec4> = sim
-            .drive_frame()
-            .iter()
-            .flatten()
-            .map(|(_, t)| t.extend(0.0))
-            .collect();
+        let driven = sim.drive_frame();
         if self.attached > 0 {
+            let targets: Vec<Vec4> = driven
+                .attachments
+                .iter()
+                .flatten()
+                .map(|(_, t)| t.extend(0.0))
+                .collect();
             self.ctx
                 .queue
                 .write_buffer(&self.attach_target, 0, bytemuck::cast_slice(&targets));
+        }
+        if self.moving_colliders {
+            let poses: Vec<GpuCollider> = driven
+                .colliders
+                .iter()
+                .flatten()
+                .map(gpu_collider)
+                .collect();
+            self.ctx
+                .queue
+                .write_buffer(&self.colliders, 0, bytemuck::cast_slice(&poses));
         }
         let encoder = self.record_frame(sim);
         let n = self.particles as u64 * 16;
@@ -587,15 +629,8 @@ impl GpuSimulation {
                 dispatch(&mut pass, &k.pc_order, PARAMS_NEXT, table, GROUP);
                 dispatch(&mut pass, &k.pc_push_out, PARAMS_NEXT, n, GROUP);
             }
-            let last = substep + 1 == sim.substeps;
             if integrating {
-                dispatch(
-                    &mut pass,
-                    &k.finish,
-                    if last { PARAMS_LAST } else { PARAMS_NEXT },
-                    n,
-                    GROUP,
-                );
+                dispatch(&mut pass, &k.finish, self.finish_slots + substep, n, GROUP);
             } else {
                 dispatch(&mut pass, &k.finish_static, PARAMS_NEXT, n, GROUP);
             }

@@ -248,14 +248,7 @@ impl Simulation {
     /// the velocity that got it there, and every keyframed collider in its pose then.
     fn place_attachments(&mut self) {
         let t = (self.elapsed_substeps + 1) as f32 / (self.substeps as f32 * self.fps);
-        for (i, track, rest) in &self.collider_motion {
-            let (rotation, translation) = track.pose(t);
-            let shape = rest.moved(track.pivot, rotation, translation);
-            let c = &mut self.colliders[*i];
-            c.moved = shape.centre() - c.shape.centre();
-            c.shape = shape;
-            self.driven_speed = self.driven_speed.max(c.moved.length() / self.step);
-        }
+        self.pose_colliders(t);
         for a in &self.attachments.list {
             let i = a.particle as usize;
             let target = self.attachments.position(a, t, self.fps).extend(0.0);
@@ -265,36 +258,51 @@ impl Simulation {
         }
     }
 
-    /// Where the attached particles go at the end of each substep of the next frame (storage
-    /// index, target), substep by substep, advancing the clock by a frame as if it ran: for a
-    /// backend that runs the frame elsewhere (the GPU) and copies the state back.
-    pub fn drive_frame(&mut self) -> Vec<Vec<(u32, Vec3)>> {
-        let per_second = self.substeps as f32 * self.fps;
+    /// Where the attached particles go (storage index, target) and where the colliders are, at
+    /// the end of each substep of the next frame, substep by substep; advances the clock by a
+    /// frame as if it ran, leaving the colliders in their last pose: for a backend that runs
+    /// the frame elsewhere (the GPU) and copies the state back.
+    pub fn drive_frame(&mut self) -> DrivenFrame {
+        let mut frame = DrivenFrame::default();
         let mut last: Vec<Vec3> = self
             .attachments
             .list
             .iter()
             .map(|a| self.state.positions[a.particle as usize].truncate())
             .collect();
-        let frame = (1..=self.substeps as u64)
-            .map(|k| {
-                let t = (self.elapsed_substeps + k) as f32 / per_second;
+        for _ in 0..self.substeps {
+            let t = (self.elapsed_substeps + 1) as f32 / (self.substeps as f32 * self.fps);
+            frame.attachments.push(
                 self.attachments
                     .list
                     .iter()
                     .zip(&mut last)
                     .map(|(a, last)| {
                         let target = self.attachments.position(a, t, self.fps);
-                        self.driven_speed =
-                            self.driven_speed.max(target.distance(*last) / self.step);
+                        let speed = target.distance(*last) / self.step;
+                        self.driven_speed = self.driven_speed.max(speed);
                         *last = target;
                         (a.particle, target)
                     })
-                    .collect()
-            })
-            .collect();
-        self.elapsed_substeps += self.substeps as u64;
+                    .collect(),
+            );
+            self.pose_colliders(t);
+            frame.colliders.push(self.colliders.clone());
+            self.elapsed_substeps += 1;
+        }
         frame
+    }
+
+    /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there.
+    fn pose_colliders(&mut self, t: f32) {
+        for (i, track, rest) in &self.collider_motion {
+            let (rotation, translation) = track.pose(t);
+            let shape = rest.moved(track.pivot, rotation, translation);
+            let c = &mut self.colliders[*i];
+            c.moved = shape.centre() - c.shape.centre();
+            c.shape = shape;
+            self.driven_speed = self.driven_speed.max(c.moved.length() / self.step);
+        }
     }
 
     /// Kinetic energy attachments, moving colliders and characters may have given the garments
@@ -424,6 +432,15 @@ impl Simulation {
     pub fn integrating(&self) -> bool {
         self.verlet.is_some()
     }
+}
+
+/// What drives one frame, substep by substep (see [`Simulation::drive_frame`]).
+#[derive(Clone, Debug, Default)]
+pub struct DrivenFrame {
+    /// Per substep: each attached particle (storage index) and its target [m].
+    pub attachments: Vec<Vec<(u32, Vec3)>>,
+    /// Per substep: every collider in its pose at the end of that substep.
+    pub colliders: Vec<Vec<Collider>>,
 }
 
 /// The per-particle stages of a substep, with what they read and write.
