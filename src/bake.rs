@@ -313,6 +313,10 @@ fn run(
             None => sim.step_frame(),
         }
         if sim.tears() && sim.tear() > 0 {
+            // The GPU takes the torn model (and the state it produced) afresh.
+            if let Some(g) = &mut gpu {
+                g.reload(&sim)?;
+            }
             if let Some(w) = &mut writer {
                 w.set_garments(sim.model().garments.clone());
             }

@@ -10,7 +10,8 @@ use crate::error::{Error, Result};
 /// group of particle collisions and attachments).
 pub const STORAGE_BUFFERS_NEEDED: u32 = 24;
 
-/// A device and queue with what the report says about them.
+/// A device and queue with what the report says about them (cloning shares them).
+#[derive(Clone)]
 pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,

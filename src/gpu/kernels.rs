@@ -60,7 +60,8 @@ pub fn source(file: &str) -> String {
 const READ_WRITE: std::ops::RangeInclusive<u32> = 1..=6;
 const READ_ONLY: std::ops::RangeInclusive<u32> = 7..=13;
 
-/// The pipelines of every stage and the bind group layouts they share.
+/// The pipelines of every stage and the bind group layouts they share (cloning shares them).
+#[derive(Clone)]
 pub struct Kernels {
     pub group0: wgpu::BindGroupLayout,
     pub group1: wgpu::BindGroupLayout,

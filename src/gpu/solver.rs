@@ -116,6 +116,18 @@ fn groups(count: u32, size: u32) -> u32 {
 impl GpuSimulation {
     /// Uploads `sim`'s model and state to the GPU of `ctx`.
     pub fn new(ctx: GpuContext, sim: &Simulation) -> Result<GpuSimulation> {
+        let kernels = Kernels::new(&ctx.device);
+        GpuSimulation::with_kernels(ctx, kernels, sim)
+    }
+
+    /// Uploads `sim`'s model and state again, after something changed them on the CPU (tearing
+    /// rebuilds the model): the kernels are kept.
+    pub fn reload(&mut self, sim: &Simulation) -> Result<()> {
+        *self = GpuSimulation::with_kernels(self.ctx.clone(), self.kernels.clone(), sim)?;
+        Ok(())
+    }
+
+    fn with_kernels(ctx: GpuContext, kernels: Kernels, sim: &Simulation) -> Result<GpuSimulation> {
         let settings = &sim.solver_settings();
         if settings.kind == SolverKind::Gs {
             return Err(Error::Gpu {
@@ -127,11 +139,6 @@ impl GpuSimulation {
                 reason:
                     "characters (collision shells) are simulated on the CPU backend only so far"
                         .into(),
-            });
-        }
-        if sim.tears() {
-            return Err(Error::Gpu {
-                reason: "tearing is simulated on the CPU backend only so far".into(),
             });
         }
         let device = &ctx.device;
@@ -161,7 +168,6 @@ impl GpuSimulation {
         ctx.device.set_device_lost_callback(|reason, message| {
             eprintln!("drape: GPU device lost ({reason:?}): {message}");
         });
-        let kernels = Kernels::new(device);
         let rw = wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_SRC
             | wgpu::BufferUsages::COPY_DST;

@@ -228,7 +228,8 @@ pub struct GarmentSpec {
     /// Colour in exports and previews, linear RGB in 0…1. Default: one of a palette by index.
     pub colour: Option<[f32; 3]>,
     /// Springs break when stretched past this strain (0.5: 50 % longer than at rest), checked
-    /// after every frame (CPU backend only so far). Default none: the cloth never tears.
+    /// after every frame (on the CPU; a GPU bake takes the torn model afresh). Default none: the
+    /// cloth never tears.
     pub tear_strain: Option<f32>,
     /// Particles that follow animated targets (a character's skin, or keyframed rigid motion).
     /// They are pinned: the solver moves the rest of the cloth after them. Default none.

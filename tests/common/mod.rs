@@ -49,24 +49,3 @@ pub fn largest_step(c: &drape::character::Character) -> f32 {
         })
         .fold(0.0, f32::max)
 }
-
-/// Bakes `scene` (JSON) with `"backend": "gpu"` for two frames and checks that it fails with a
-/// message containing `reason` and leaves no output folder: features the GPU does not have yet.
-pub fn assert_gpu_refuses(scene: &str, reason: &str) {
-    let dir = temp_dir();
-    write(
-        dir.path(),
-        "scene.json",
-        &scene.replace("\"cpu\"", "\"gpu\""),
-    );
-    let out = drape(
-        dir.path(),
-        &["bake", "scene.json", "--out", "out", "--frames", "2"],
-    );
-    assert!(
-        !out.status.success(),
-        "the GPU backend accepted a scene with {reason}"
-    );
-    assert!(stderr(&out).contains(reason), "{}", stderr(&out));
-    assert!(!dir.path().join("out").exists());
-}
