@@ -330,12 +330,9 @@ fn run(
         frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
 
         let error = sim.constraint_error();
-        let mut penetrations = collide::penetrations(&sim.colliders, &sim.state.positions);
-        penetrations.extend(
-            sim.shells
-                .iter()
-                .map(|s| s.penetration(&sim.state.positions)),
-        );
+        let free = sim.free_positions();
+        let mut penetrations = collide::penetrations(&sim.colliders, &free);
+        penetrations.extend(sim.shells.iter().map(|s| s.penetration(&free)));
         report.penetrations_per_frame.push(FramePenetrations {
             frame,
             inside: penetrations.iter().map(|p| p.inside).collect(),

@@ -109,7 +109,7 @@ pub fn time_frames(
         }
         let timing = crate::report::Timing::of(&ms);
         let error = sim.constraint_error();
-        let pen = collide::penetrations(&sim.colliders, &sim.state.positions);
+        let pen = collide::penetrations(&sim.colliders, &sim.free_positions());
         Ok(FrameTiming {
             scene: scene.name.clone(),
             solver: kind.name(),

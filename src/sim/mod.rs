@@ -395,6 +395,19 @@ impl Simulation {
         &self.model
     }
 
+    /// Positions of the particles the simulation moves (storage order; pinned and attached
+    /// particles, which follow their targets whatever is in the way, are left out): what
+    /// penetration is measured on.
+    pub fn free_positions(&self) -> Vec<Vec4> {
+        self.state
+            .positions
+            .iter()
+            .zip(&self.model.inv_mass)
+            .filter(|(_, &w)| w != 0.0)
+            .map(|(p, _)| *p)
+            .collect()
+    }
+
     /// Positions in export order.
     pub fn export_positions(&self) -> Vec<Vec3> {
         self.state.export_positions(&self.model)
