@@ -9,6 +9,7 @@
 
 pub mod camera;
 pub mod sheet;
+pub mod tube;
 
 use crate::error::{Error, Result};
 use crate::export::gltf::AnimatedMesh;
@@ -738,6 +739,8 @@ pub fn render_sequence(
     dir: &Path,
 ) -> Result<RenderSummary> {
     let adapter = ctx.describe();
+    let diagonal = bounds(meshes).map_or(1.0, |(lo, hi)| (hi - lo).length());
+    let meshes = &tube::ropes_as_tubes(meshes, tube::RADIUS_OF_DIAGONAL * diagonal);
     let mut renderer = Renderer::new(ctx, meshes, options)?;
     let preview = dir.join("preview");
     std::fs::create_dir_all(&preview).map_err(|e| Error::io(&preview, "cannot create", e))?;
