@@ -16,19 +16,23 @@ const CURTAIN: &str = r#"{ "frames": 90, "substeps": 10, "backend": "cpu",
                  "attachments": [{ "particles": "top_edge",
                                    "keyframes": [{ "time": 0 }, { "time": 1, "translation": [0.6, 0, 0] }] }] }] }"#;
 
-#[test]
-fn a_curtain_rail_carries_its_top_edge_exactly() {
-    let scene = common::scene(CURTAIN);
-    let mut sim = Simulation::new(&scene);
-    let rest: Vec<(usize, Vec3)> = sim
-        .attachments
+/// Each attached particle (storage index) and its rest position on the rail.
+fn rail_rest(sim: &Simulation) -> Vec<(usize, Vec3)> {
+    sim.attachments
         .list
         .iter()
         .map(|a| match a.target {
             Target::Keyframed { rest, .. } => (a.particle as usize, rest),
             _ => panic!("keyframed"),
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn a_curtain_rail_carries_its_top_edge_exactly() {
+    let scene = common::scene(CURTAIN);
+    let mut sim = Simulation::new(&scene);
+    let rest = rail_rest(&sim);
     assert_eq!(rest.len(), 20, "the top row");
     let mut worst = 0.0f32;
     for frame in 1..=scene.frames {
@@ -207,37 +211,19 @@ fn the_gpu_carries_the_curtain_as_the_cpu_does() {
     // tolerance over the first 30 frames. (Measured: 2e-7 m at frame 11, 1e-5 m at frame 31;
     // then the dragged curtain buckles into folds and rounding differences grow tenfold every
     // 15 frames, to 1 cm by frame 81: the motion is chaotic, as buckling is.)
-    let ctx = match drape::gpu::GpuContext::new(false) {
-        Ok(c) => c,
-        Err(e) => {
-            eprintln!("skipped: {e}");
-            return;
-        }
+    let Some(ctx) = common::gpu_context() else {
+        return;
     };
     let scene = common::scene(CURTAIN);
     let mut cpu = Simulation::new(&scene);
     let mut on_gpu = Simulation::new(&scene);
     let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
-    let rest: Vec<(usize, Vec3)> = on_gpu
-        .attachments
-        .list
-        .iter()
-        .map(|a| match a.target {
-            Target::Keyframed { rest, .. } => (a.particle as usize, rest),
-            _ => panic!("keyframed"),
-        })
-        .collect();
+    let rest = rail_rest(&on_gpu);
     let (mut worst, mut off_rail) = (0.0f32, 0.0f32);
     for frame in 1..=scene.frames {
         cpu.step_frame();
         gpu.step_frame(&mut on_gpu).expect("GPU frame");
-        let gap = cpu
-            .state
-            .positions
-            .iter()
-            .zip(&on_gpu.state.positions)
-            .map(|(p, q)| (*p - *q).length())
-            .fold(0.0, f32::max);
+        let gap = common::largest_gap(&cpu, &on_gpu);
         if frame <= 30 {
             worst = worst.max(gap);
         }

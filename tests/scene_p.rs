@@ -7,21 +7,28 @@
 use drape::bake::{bake, BakeOptions};
 use drape::scene::{GltfOutput, Scene};
 
-#[test]
-fn the_poncho_stays_out_of_the_mannequin_and_on_its_shoulders() {
-    let mut scene = Scene::load(std::path::Path::new("scenes/poncho.json")).expect("scene P");
+/// Bakes a scene file on the CPU (optionally for fewer frames), writing no frame files.
+fn bake_without_files(file: &str, frames: Option<u32>) -> (Scene, drape::bake::Bake) {
+    let mut scene = Scene::load(std::path::Path::new(file)).expect("scene");
     scene.backend = drape::scene::BackendKind::Cpu;
+    scene.frames = frames.unwrap_or(scene.frames);
     scene.output.obj = false;
     scene.output.gltf = GltfOutput::None;
     let dir = tempfile::tempdir().unwrap();
     let options = BakeOptions {
         out: dir.path().join("out"),
-        scene_file: "scenes/poncho.json".into(),
+        scene_file: file.into(),
         threads: Some(2),
         progress: false,
         shell_cache: Some(dir.path().join("cache")),
     };
     let result = bake(&scene, &options).expect("bake");
+    (scene, result)
+}
+
+#[test]
+fn the_poncho_stays_out_of_the_mannequin_and_on_its_shoulders() {
+    let (scene, result) = bake_without_files("scenes/poncho.json", None);
     let r = &result.report;
     assert!(r.stable, "{:?}", r.failure);
     assert_eq!(r.frames_baked, 240);
@@ -55,19 +62,7 @@ fn the_poncho_stays_out_of_the_mannequin_and_on_its_shoulders() {
 
 #[test]
 fn a_poncho_on_the_walking_cesium_man_stays_out_of_him() {
-    let mut scene = Scene::load(std::path::Path::new("scenes/poncho_walk.json")).expect("scene");
-    scene.frames = 90;
-    scene.output.obj = false;
-    scene.output.gltf = GltfOutput::None;
-    let dir = tempfile::tempdir().unwrap();
-    let options = BakeOptions {
-        out: dir.path().join("out"),
-        scene_file: "scenes/poncho_walk.json".into(),
-        threads: Some(2),
-        progress: false,
-        shell_cache: Some(dir.path().join("cache")),
-    };
-    let result = bake(&scene, &options).expect("bake");
+    let (scene, result) = bake_without_files("scenes/poncho_walk.json", Some(90));
     let r = &result.report;
     assert!(r.stable, "{:?}", r.failure);
     let deepest = r

@@ -104,19 +104,13 @@ impl Shape {
             },
             // A funnel stays upright: it follows the translation (its keyframed rotation is
             // rejected by validation).
-            Shape::Funnel {
-                center,
-                radius,
-                top_radius,
-                height,
-                half_thickness,
-            } => Shape::Funnel {
-                center: point(center),
-                radius,
-                top_radius,
-                height,
-                half_thickness,
-            },
+            Shape::Funnel { center, .. } => {
+                let mut funnel = *self;
+                if let Shape::Funnel { center: c, .. } = &mut funnel {
+                    *c = point(center);
+                }
+                funnel
+            }
             Shape::Wedge {
                 center,
                 half,

@@ -162,16 +162,8 @@ impl Garment {
             positions.push(centre + rotation * (local * spec.initial_stretch));
             uvs.push([u, v]);
         }
-        let stencil = Stencil::new(dims, spec.stiffness.shear > 0.0, spec.stiffness.bend > 0.0);
-        let colouring = Colouring::derive(&stencil);
+        let (stencil, colouring, pins) = lattice(dims, spec);
         let springs = build_springs(dims, &stencil, &spacing, &spec.stiffness);
-        let mut pins: Vec<u32> = spec
-            .pins
-            .iter()
-            .map(|pin| index_of(dims, resolve_cell(dims, pin)))
-            .collect();
-        pins.sort_unstable();
-        pins.dedup();
         let mut garment = Garment {
             name,
             dims,
@@ -224,16 +216,8 @@ impl Garment {
         let dims = voxels.dims;
         let count = dims.iter().product::<u32>() as usize;
         let h = voxels.spacing;
-        let stencil = Stencil::new(dims, spec.stiffness.shear > 0.0, spec.stiffness.bend > 0.0);
-        let colouring = Colouring::derive(&stencil);
+        let (stencil, colouring, pins) = lattice(dims, spec);
         let cells: Vec<[u32; 3]> = (0..count as u32).map(|k| cell_of(dims, k)).collect();
-        let mut pins: Vec<u32> = spec
-            .pins
-            .iter()
-            .map(|pin| index_of(dims, resolve_cell(dims, pin)))
-            .collect();
-        pins.sort_unstable();
-        pins.dedup();
         let mut garment = Garment {
             name,
             dims,
@@ -426,6 +410,21 @@ pub fn build_all(scene: &crate::scene::Scene) -> Vec<Garment> {
             g
         })
         .collect()
+}
+
+/// The stencil and colouring of a `dims` lattice for the spec's springs, and its pinned
+/// particles (full-lattice grid order, sorted, unique).
+fn lattice(dims: [u32; 3], spec: &GarmentSpec) -> (Stencil, Colouring, Vec<u32>) {
+    let stencil = Stencil::new(dims, spec.stiffness.shear > 0.0, spec.stiffness.bend > 0.0);
+    let colouring = Colouring::derive(&stencil);
+    let mut pins: Vec<u32> = spec
+        .pins
+        .iter()
+        .map(|pin| index_of(dims, resolve_cell(dims, pin)))
+        .collect();
+    pins.sort_unstable();
+    pins.dedup();
+    (stencil, colouring, pins)
 }
 
 /// The lattice cell grid coordinates name (negative from the end; validated before).

@@ -49,3 +49,25 @@ pub fn largest_step(c: &drape::character::Character) -> f32 {
         })
         .fold(0.0, f32::max)
 }
+
+/// A GPU context on any adapter (lavapipe here and in CI), or None after printing "skipped" when
+/// the machine has none.
+pub fn gpu_context() -> Option<drape::gpu::GpuContext> {
+    match drape::gpu::GpuContext::new(false) {
+        Ok(c) => Some(c),
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            None
+        }
+    }
+}
+
+/// Largest distance between the particles of two simulations of one scene [m].
+pub fn largest_gap(a: &drape::sim::Simulation, b: &drape::sim::Simulation) -> f32 {
+    a.state
+        .positions
+        .iter()
+        .zip(&b.state.positions)
+        .map(|(p, q)| (*p - *q).length())
+        .fold(0.0, f32::max)
+}
