@@ -4,18 +4,14 @@
 //! and the sphere collider too. Without any adapter the tests print "skipped"; a wgpu validation
 //! error fails them.
 
+mod common;
+
 use drape::gpu::{GpuContext, GpuSimulation};
 use drape::scene::{reference, Scene, SolverKind};
 use drape::sim::Simulation;
 
 fn context() -> Option<GpuContext> {
-    match GpuContext::new(false) {
-        Ok(c) => Some(c),
-        Err(e) => {
-            eprintln!("skipped: {e}");
-            None
-        }
-    }
+    common::gpu_context()
 }
 
 /// Runs `frames` frames on both backends; returns (cpu, gpu) simulations.
@@ -32,12 +28,7 @@ fn both(scene: &Scene, frames: u32) -> Option<(Simulation, Simulation)> {
 }
 
 fn max_distance(a: &Simulation, b: &Simulation) -> f32 {
-    a.state
-        .positions
-        .iter()
-        .zip(&b.state.positions)
-        .map(|(p, q)| (*p - *q).length())
-        .fold(0.0, f32::max)
+    common::largest_gap(a, b)
 }
 
 /// Particles of `sim` within 1 cm of collider `c`'s surface.
