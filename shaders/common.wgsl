@@ -75,6 +75,30 @@ struct Contacts {
     diameter: f32,             // particles keep this far apart [m]
     table: u32,                // hash buckets (a power of two)
     enabled: u32,              // 0: no particle collisions (the buffers are placeholders)
+    shells: u32,               // characters' shells
+    shell_stride: u32,         // shell particles of all shells (one substep's worth)
+    grid_stride: u32,          // shell grid entries of all shells (one substep's worth)
+    _pad: u32,
+}
+
+// A character's shell (src/collide/shell.rs): where its particles and grid sit in one
+// substep's share of `shell_particle` and `shell_grid`, and its constants.
+struct ShellInfo {
+    first: u32,                // first particle
+    count: u32,                // particles
+    grid: u32,                 // first grid entry: table + 1 bucket starts, then count items
+    table: u32,                // hash buckets (a power of two)
+    radius: f32,               // shell particle radius [m]
+    friction: f32,
+    cell: f32,                 // grid cell width [m]
+    flags: u32,                // bit 0: swept test on; bit 1: normals present
+}
+
+// A shell particle at the end of a substep: position, motion over it, skin normal.
+struct ShellParticle {
+    position: vec4<f32>,
+    motion: vec4<f32>,
+    normal: vec4<f32>,
 }
 
 const B_END: u32 = 0x80000000u;
@@ -110,6 +134,11 @@ const TINY_LENGTH: f32 = 1e-12;
 // goes (uploaded by the CPU every frame).
 @group(2) @binding(7) var<storage, read> attach_particle: array<u32>;
 @group(2) @binding(8) var<storage, read> attach_target: array<vec4<f32>>;
+
+// Characters' shells, every substep of the frame (uploaded by the CPU every frame).
+@group(2) @binding(9) var<storage, read> shell_info: array<ShellInfo>;
+@group(2) @binding(10) var<storage, read> shell_particle: array<ShellParticle>;
+@group(2) @binding(11) var<storage, read> shell_grid: array<u32>;
 
 // L / |e| for an edge of squared length `length_squared` (0 when too short to have a direction).
 fn spring_projection_scale(length_squared: f32, rest: f32) -> f32 {

@@ -234,6 +234,9 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var c = 0u; c < params.colliders; c = c + 1u) {
         d = collider_resolve(colliders[params.collider_base + c], xi, d, particle[i].contact_radius);
     }
+    for (var s = 0u; s < contacts.shells; s = s + 1u) {
+        d = shell_resolve(s, params.range_start, xi, d, particle[i].contact_radius);
+    }
     x[i] = xi + d;
     velocity[i] = d * params.inv_step;
     if (params.predict_next != 0u) {
@@ -268,4 +271,212 @@ fn attach(@builtin(global_invocation_id) id: vec3<u32>) {
     let goal = attach_target[k];
     velocity[p] = (goal - x[p]) * params.inv_step;
     x[p] = goal;
+}
+
+// ---- Characters' shells: ShellCollider::resolve on the CPU, step for step. ----
+
+const SHELL_FOUND: u32 = 512u;
+
+fn shell_bucket(c: vec3<i32>, table: u32) -> u32 {
+    let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
+    return bitcast<u32>(h) & (table - 1u);
+}
+
+// Where substep `substep`'s data of shell `sh` starts: particles, grid.
+struct ShellAt {
+    info: ShellInfo,
+    particles: u32,
+    grid: u32,
+}
+
+fn shell_at(s: u32, substep: u32) -> ShellAt {
+    let info = shell_info[s];
+    return ShellAt(
+        info,
+        substep * contacts.shell_stride + info.first,
+        substep * contacts.grid_stride + info.grid,
+    );
+}
+
+struct FirstHit {
+    t: f32,
+    j: u32,
+    found: bool,
+}
+
+// First-contact test of one candidate (ShellCollider::first_contact).
+fn shell_first_visit(at: ShellAt, j: u32, x: vec3<f32>, d: vec3<f32>, reach: f32, best: ptr<function, FirstHit>) {
+    let q = shell_particle[at.particles + j];
+    let n = q.normal.xyz;
+    let end = q.position.xyz;
+    let r0 = x - (end - q.motion.xyz);
+    let r1 = x + d - end;
+    let h0 = dot(r0, n);
+    let h1 = dot(r1, n);
+    if (h0 < 0.0 || h1 >= 0.0 || dot(r1, r1) < reach * reach) {
+        return;
+    }
+    let t = h0 / (h0 - h1);
+    let crossing = r0 + (r1 - r0) * t;
+    if (dot(crossing, crossing) >= reach * reach) {
+        return;
+    }
+    if (!(*best).found || t < (*best).t) {
+        *best = FirstHit(t, j, true);
+    }
+}
+
+struct PushOut {
+    p: vec3<f32>,
+    total: vec3<f32>,
+    skin: vec3<f32>,
+    contacts: u32,
+}
+
+// Push-out from one candidate (ShellCollider::push_out).
+fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>) {
+    let q = shell_particle[at.particles + j];
+    let d = (*acc).p - q.position.xyz;
+    let dist2 = dot(d, d);
+    if (dist2 >= reach * reach) {
+        return;
+    }
+    var push: vec3<f32>;
+    let normal = q.normal.xyz;
+    if ((at.info.flags & 2u) != 0u && dot(d, normal) < 0.0) {
+        let along = d - normal * dot(d, normal);
+        let height = sqrt(max(reach * reach - dot(along, along), 0.0));
+        push = normal * (height - dot(d, normal));
+    } else {
+        let dist = sqrt(dist2);
+        var n = vec3<f32>(0.0, 1.0, 0.0);
+        if (dist > 1e-9) {
+            n = d / dist;
+        }
+        push = n * (reach - dist);
+    }
+    (*acc).p = (*acc).p + push;
+    (*acc).total = (*acc).total + push;
+    (*acc).skin = (*acc).skin + q.motion.xyz;
+    (*acc).contacts = (*acc).contacts + 1u;
+}
+
+fn shell_items(at: ShellAt, b: u32) -> vec2<u32> {
+    let items = at.grid + at.info.table + 1u;
+    return vec2<u32>(items + shell_grid[at.grid + b], items + shell_grid[at.grid + b + 1u]);
+}
+
+// Push-out over the 27 cells around `p` (HashGrid::near: each bucket once).
+fn shell_push_near(at: ShellAt, reach: f32, acc: ptr<function, PushOut>) {
+    let c = vec3<i32>(floor((*acc).p / at.info.cell));
+    var seen: array<u32, 27>;
+    var n = 0u;
+    for (var dx = -1; dx <= 1; dx++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dz = -1; dz <= 1; dz++) {
+                let b = shell_bucket(c + vec3<i32>(dx, dy, dz), at.info.table);
+                var again = false;
+                for (var k = 0u; k < n; k++) {
+                    again = again || seen[k] == b;
+                }
+                if (again) {
+                    continue;
+                }
+                seen[n] = b;
+                n = n + 1u;
+                let range = shell_items(at, b);
+                for (var k = range.x; k < range.y; k++) {
+                    shell_push_visit(at, shell_grid[k], reach, acc);
+                }
+            }
+        }
+    }
+}
+
+// Friction on the motion relative to the skin (as the CPU), the corrected displacement.
+fn shell_finish(at: ShellAt, x3: vec3<f32>, acc: PushOut) -> vec4<f32> {
+    var p = acc.p;
+    if (acc.contacts == 0u) {
+        return vec4<f32>(p - x3, 0.0);
+    }
+    let push_len = length(acc.total);
+    var n = vec3<f32>(0.0, 1.0, 0.0);
+    if (push_len > 1e-12) {
+        n = acc.total / push_len;
+    }
+    let skin = acc.skin / f32(acc.contacts);
+    let relative = (p - x3) - skin;
+    let tangent = relative - n * dot(relative, n);
+    let t_len = length(tangent);
+    let limit = at.info.friction * push_len;
+    if (t_len <= limit) {
+        p = p - tangent;
+    } else {
+        p = p - tangent * (limit / t_len);
+    }
+    return vec4<f32>(p - x3, 0.0);
+}
+
+// A garment particle against shell `s` at substep `substep` (ShellCollider::resolve).
+fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32) -> vec4<f32> {
+    let at = shell_at(s, substep);
+    if (at.info.count == 0u) {
+        return delta;
+    }
+    let reach = at.info.radius + radius;
+    let x3 = x.xyz;
+    let d = delta.xyz;
+    var p = x3 + d;
+    if ((at.info.flags & 3u) == 3u && length(d) <= 64.0 * at.info.cell) {
+        // The cells around the path (HashGrid::near_segment), gathered once for both tests.
+        var found: array<u32, 512>;
+        var count = 0u;
+        let lo = vec3<i32>(floor(min(x3, p) / at.info.cell)) - vec3<i32>(1);
+        let hi = vec3<i32>(floor(max(x3, p) / at.info.cell)) + vec3<i32>(1);
+        for (var cx = lo.x; cx <= hi.x; cx++) {
+            for (var cy = lo.y; cy <= hi.y; cy++) {
+                for (var cz = lo.z; cz <= hi.z; cz++) {
+                    let range = shell_items(at, shell_bucket(vec3<i32>(cx, cy, cz), at.info.table));
+                    for (var k = range.x; k < range.y; k++) {
+                        if (count < SHELL_FOUND) {
+                            found[count] = shell_grid[k];
+                        }
+                        count = count + 1u;
+                    }
+                }
+            }
+        }
+        if (count <= SHELL_FOUND) {
+            var best = FirstHit(0.0, 0u, false);
+            for (var k = 0u; k < count; k++) {
+                shell_first_visit(at, found[k], x3, d, reach, &best);
+            }
+            if (best.found) {
+                p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
+            }
+            var acc = PushOut(p, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+            for (var k = 0u; k < count; k++) {
+                shell_push_visit(at, found[k], reach, &acc);
+            }
+            return shell_finish(at, x3, acc);
+        }
+        // Too many candidates to keep: trace with a second walk over the same cells.
+        var best = FirstHit(0.0, 0u, false);
+        for (var cx = lo.x; cx <= hi.x; cx++) {
+            for (var cy = lo.y; cy <= hi.y; cy++) {
+                for (var cz = lo.z; cz <= hi.z; cz++) {
+                    let range = shell_items(at, shell_bucket(vec3<i32>(cx, cy, cz), at.info.table));
+                    for (var k = range.x; k < range.y; k++) {
+                        shell_first_visit(at, shell_grid[k], x3, d, reach, &best);
+                    }
+                }
+            }
+        }
+        if (best.found) {
+            p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
+        }
+    }
+    var acc = PushOut(p, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    shell_push_near(at, reach, &acc);
+    return shell_finish(at, x3, acc);
 }

@@ -69,16 +69,17 @@ struct HashGrid {
     items: Vec<u32>,
 }
 
+/// The bucket of cell `c` among a power-of-two number of `buckets` (wrapping 32-bit products,
+/// as the GPU computes it too).
 fn bucket(c: IVec3, buckets: usize) -> usize {
-    let h = (c.x as i64).wrapping_mul(73_856_093)
-        ^ (c.y as i64).wrapping_mul(19_349_663)
-        ^ (c.z as i64).wrapping_mul(83_492_791);
-    h.rem_euclid(buckets as i64) as usize
+    let h =
+        c.x.wrapping_mul(73_856_093) ^ c.y.wrapping_mul(19_349_663) ^ c.z.wrapping_mul(83_492_791);
+    (h as u32 as usize) & (buckets - 1)
 }
 
 impl HashGrid {
     fn build(&mut self, points: &[Vec3], cell: f32) {
-        let buckets = (2 * points.len()).next_power_of_two().max(64);
+        let buckets = ShellCollider::buckets_for(points.len());
         self.cell = cell;
         self.start.clear();
         self.start.resize(buckets + 1, 0);
@@ -185,8 +186,8 @@ impl ShellCollider {
         } else {
             vec![Vec3::ZERO; self.now.len()]
         };
-        self.grid
-            .build(&self.now, (self.radius + garment_radius).max(1e-6));
+        let cell = self.cell_for(garment_radius);
+        self.grid.build(&self.now, cell);
     }
 
     /// Resolves a garment particle starting the step at `x` and moving by `delta`, of contact
@@ -354,6 +355,34 @@ impl ShellCollider {
             .map(|m| m.length_squared())
             .fold(0.0, f32::max)
             .sqrt()
+    }
+
+    /// The shell as the GPU reads it at the end of the current substep: per particle its
+    /// position, its motion over the substep and its normal (zero without normals); then the
+    /// grid's bucket starts (buckets + 1) and its items.
+    pub fn gpu_snapshot(&self) -> (Vec<[Vec4; 3]>, Vec<u32>) {
+        let particles = self
+            .now
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let n = self.now_normal.get(i).copied().unwrap_or(Vec3::ZERO);
+                [p.extend(0.0), self.motion[i].extend(0.0), n.extend(0.0)]
+            })
+            .collect();
+        let mut grid = self.grid.start.clone();
+        grid.extend_from_slice(&self.grid.items);
+        (particles, grid)
+    }
+
+    /// Hash buckets of the grid for `particles` shell particles.
+    pub fn buckets_for(particles: usize) -> usize {
+        (2 * particles).next_power_of_two().max(64)
+    }
+
+    /// Width of a grid cell for garment particles of contact radius up to `garment_radius`.
+    pub fn cell_for(&self, garment_radius: f32) -> f32 {
+        (self.radius + garment_radius).max(1e-6)
     }
 
     /// Number of shell particles.

@@ -7,8 +7,8 @@
 use crate::error::{Error, Result};
 
 /// Storage buffers one kernel binds (shaders/common.wgsl group 0, the residual group and the
-/// group of particle collisions and attachments).
-pub const STORAGE_BUFFERS_NEEDED: u32 = 24;
+/// group of particle collisions, attachments and characters' shells).
+pub const STORAGE_BUFFERS_NEEDED: u32 = 27;
 
 /// A device and queue with what the report says about them (cloning shares them).
 #[derive(Clone)]

@@ -65,8 +65,8 @@ const READ_ONLY: std::ops::RangeInclusive<u32> = 7..=13;
 pub struct Kernels {
     pub group0: wgpu::BindGroupLayout,
     pub group1: wgpu::BindGroupLayout,
-    /// Particle–particle collisions (a uniform, one read-only and five read-write buffers) and
-    /// attachments (two read-only buffers).
+    /// Particle–particle collisions (a uniform, one read-only and five read-write buffers),
+    /// attachments (two read-only buffers) and characters' shells (three read-only buffers).
     pub group2: wgpu::BindGroupLayout,
     pub predict: wgpu::ComputePipeline,
     pub project: wgpu::ComputePipeline,
@@ -137,7 +137,7 @@ impl Kernels {
         }];
         contacts.push(storage(1, true));
         contacts.extend((2..=6).map(|b| storage(b, false)));
-        contacts.extend((7..=8).map(|b| storage(b, true)));
+        contacts.extend((7..=11).map(|b| storage(b, true)));
         let group2 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("drape particle collisions"),
             entries: &contacts,

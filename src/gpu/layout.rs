@@ -70,6 +70,25 @@ pub struct GpuContacts {
     pub diameter: f32,
     pub table: u32,
     pub enabled: u32,
+    pub shells: u32,
+    pub shell_stride: u32,
+    pub grid_stride: u32,
+    pub _pad: u32,
+}
+
+/// A character's shell (`ShellInfo` in the WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuShellInfo {
+    pub first: u32,
+    pub count: u32,
+    pub grid: u32,
+    pub table: u32,
+    pub radius: f32,
+    pub friction: f32,
+    pub cell: f32,
+    /// Bit 0: swept test on; bit 1: normals present.
+    pub flags: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
@@ -80,9 +99,11 @@ const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelSpring>() == 1
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelTether>() == 12);
 
 /// Every WGSL struct with the size of its Rust mirror, for the layout test.
-pub const MIRRORS: [(&str, usize); 7] = [
+pub const MIRRORS: [(&str, usize); 9] = [
     ("Params", std::mem::size_of::<GpuParams>()),
     ("Contacts", std::mem::size_of::<GpuContacts>()),
+    ("ShellInfo", std::mem::size_of::<GpuShellInfo>()),
+    ("ShellParticle", 48),
     ("Particle", std::mem::size_of::<GpuParticle>()),
     ("Collider", std::mem::size_of::<GpuCollider>()),
     ("Slot", std::mem::size_of::<crate::sim::model::Slot>()),

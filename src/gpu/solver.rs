@@ -8,7 +8,9 @@
 
 use super::context::GpuContext;
 use super::kernels::Kernels;
-use super::layout::{GpuCollider, GpuContacts, GpuParams, GpuParticle, PARAMS_STRIDE};
+use super::layout::{
+    GpuCollider, GpuContacts, GpuParams, GpuParticle, GpuShellInfo, PARAMS_STRIDE,
+};
 use crate::collide::Shape;
 use crate::error::{Error, Result};
 use crate::scene::SolverKind;
@@ -51,6 +53,10 @@ pub struct GpuSimulation {
     /// The colliders, one pose per substep when some move (refreshed per frame).
     colliders: wgpu::Buffer,
     moving_colliders: bool,
+    /// Characters' shells, every substep of a frame (refreshed per frame).
+    shell_particle: wgpu::Buffer,
+    shell_grid: wgpu::Buffer,
+    has_shells: bool,
     particles: u32,
     springs: u32,
     structural: u32,
@@ -134,11 +140,16 @@ impl GpuSimulation {
                 reason: "sequential Gauss-Seidel (gs) has no parallel GPU form: use rbgs, jacobi or pbd, or the cpu backend".into(),
             });
         }
-        if !sim.shells.is_empty() {
+        if let Some(s) = sim
+            .shells
+            .iter()
+            .find(|s| s.frames.iter().any(|f| f.len() != s.particles()))
+        {
             return Err(Error::Gpu {
-                reason:
-                    "characters (collision shells) are simulated on the CPU backend only so far"
-                        .into(),
+                reason: format!(
+                    "character {:?} changes topology between frames, so its shell is re-sampled per frame: the CPU backend simulates that",
+                    s.name
+                ),
             });
         }
         let device = &ctx.device;
@@ -283,6 +294,8 @@ impl GpuSimulation {
             put(
                 finish_slots + k,
                 GpuParams {
+                    // range_start: the substep, whose shell poses `finish` reads.
+                    range_start: k,
                     collider_base: if moving { k * collider_count } else { 0 },
                     predict_next: (k + 1 < sim.substeps) as u32,
                     ..base
@@ -372,12 +385,47 @@ impl GpuSimulation {
         // Particle–particle collisions (placeholder buffers when off: the layout is shared).
         let collisions = sim.particle_collisions.as_ref();
         let table = collisions.map_or(1, |c| c.table());
+        // Characters' shells: each one's particles and grid within a substep's share.
+        let reach = sim.largest_contact_radius();
+        let mut shells = Vec::new();
+        let (mut shell_stride, mut grid_stride) = (0u32, 0u32);
+        for s in &sim.shells {
+            let count = s.particles() as u32;
+            let table = crate::collide::ShellCollider::buckets_for(s.particles()) as u32;
+            shells.push(GpuShellInfo {
+                first: shell_stride,
+                count,
+                grid: grid_stride,
+                table,
+                radius: s.radius,
+                friction: s.friction,
+                cell: s.cell_for(reach),
+                flags: s.swept as u32 | ((!s.normals.is_empty()) as u32) << 1,
+            });
+            shell_stride += count;
+            grid_stride += table + 1 + count;
+        }
         let contacts = GpuContacts {
             inv_cell: collisions.map_or(0.0, |c| c.inv_cell()),
             diameter: collisions.map_or(0.0, |c| 2.0 * c.radius),
             table: table as u32,
             enabled: collisions.is_some() as u32,
+            shells: shells.len() as u32,
+            shell_stride,
+            grid_stride,
+            _pad: 0,
         };
+        let shell_info = init("shell_info", bytemuck::cast_slice(&shells), read);
+        let shell_particle = init(
+            "shell_particle",
+            &vec![0u8; 48 * (shell_stride * sim.substeps).max(1) as usize],
+            read | wgpu::BufferUsages::COPY_DST,
+        );
+        let shell_grid = init(
+            "shell_grid",
+            &vec![0u8; 4 * (grid_stride * sim.substeps).max(1) as usize],
+            read | wgpu::BufferUsages::COPY_DST,
+        );
         let contacts = init(
             "contacts",
             bytemuck::bytes_of(&contacts),
@@ -416,6 +464,9 @@ impl GpuSimulation {
             &pc_push,
             &attach_particle,
             &attach_target,
+            &shell_info,
+            &shell_particle,
+            &shell_grid,
         ]
         .iter()
         .enumerate()
@@ -441,6 +492,9 @@ impl GpuSimulation {
             finish_slots,
             colliders: colliders_buffer,
             moving_colliders: moving,
+            shell_particle,
+            shell_grid,
+            has_shells: !sim.shells.is_empty(),
             x,
             velocity,
             residuals,
@@ -482,6 +536,19 @@ impl GpuSimulation {
             self.ctx
                 .queue
                 .write_buffer(&self.attach_target, 0, bytemuck::cast_slice(&targets));
+        }
+        if self.has_shells {
+            let mut particles: Vec<[Vec4; 3]> = Vec::new();
+            let mut grid: Vec<u32> = Vec::new();
+            for substep in &driven.shells {
+                for (p, g) in substep {
+                    particles.extend_from_slice(p);
+                    grid.extend_from_slice(g);
+                }
+            }
+            let queue = &self.ctx.queue;
+            queue.write_buffer(&self.shell_particle, 0, bytemuck::cast_slice(&particles));
+            queue.write_buffer(&self.shell_grid, 0, bytemuck::cast_slice(&grid));
         }
         if self.moving_colliders {
             let poses: Vec<GpuCollider> = driven

@@ -220,23 +220,33 @@ impl Simulation {
 
     /// Advances one substep.
     pub fn substep(&mut self) {
-        if !self.shells.is_empty() {
-            let per_frame = self.substeps as f32;
-            let from = self.elapsed_substeps as f32 / per_frame;
-            let to = (self.elapsed_substeps + 1) as f32 / per_frame;
-            let reach = self
-                .model
-                .contact_radius
-                .iter()
-                .copied()
-                .fold(0.0, f32::max);
-            for s in &mut self.shells {
-                s.advance(from, to, reach);
-                self.driven_speed = self.driven_speed.max(s.fastest_motion() / self.step);
-            }
-        }
+        self.advance_shells();
         self.place_attachments();
         self.run_substeps(1);
+    }
+
+    /// Moves the characters' shells to the end of the coming substep.
+    fn advance_shells(&mut self) {
+        if self.shells.is_empty() {
+            return;
+        }
+        let per_frame = self.substeps as f32;
+        let from = self.elapsed_substeps as f32 / per_frame;
+        let to = (self.elapsed_substeps + 1) as f32 / per_frame;
+        let reach = self.largest_contact_radius();
+        for s in &mut self.shells {
+            s.advance(from, to, reach);
+            self.driven_speed = self.driven_speed.max(s.fastest_motion() / self.step);
+        }
+    }
+
+    /// The largest contact radius of any particle [m] (shell grids are built for it).
+    pub fn largest_contact_radius(&self) -> f32 {
+        self.model
+            .contact_radius
+            .iter()
+            .copied()
+            .fold(0.0, f32::max)
     }
 
     /// True when some collider follows keyframes.
@@ -271,6 +281,10 @@ impl Simulation {
             .map(|a| self.state.positions[a.particle as usize].truncate())
             .collect();
         for _ in 0..self.substeps {
+            self.advance_shells();
+            frame
+                .shells
+                .push(self.shells.iter().map(|s| s.gpu_snapshot()).collect());
             let t = (self.elapsed_substeps + 1) as f32 / (self.substeps as f32 * self.fps);
             frame.attachments.push(
                 self.attachments
@@ -454,6 +468,8 @@ pub struct DrivenFrame {
     pub attachments: Vec<Vec<(u32, Vec3)>>,
     /// Per substep: every collider in its pose at the end of that substep.
     pub colliders: Vec<Vec<Collider>>,
+    /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`].
+    pub shells: Vec<Vec<(Vec<[Vec4; 3]>, Vec<u32>)>>,
 }
 
 /// The per-particle stages of a substep, with what they read and write.
