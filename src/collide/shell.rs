@@ -33,6 +33,10 @@ fn interpolate(frames: &[Vec<Vec3>], f: f32) -> Vec<Vec3> {
         .collect()
 }
 
+/// A shell at the end of a substep as the GPU reads it: per particle (position, motion,
+/// normal), then the grid's bucket starts and items.
+pub type ShellSnapshot = (Vec<[Vec4; 3]>, Vec<u32>);
+
 /// Calls its argument with every candidate shell particle of one query.
 type Candidates<'a> = &'a dyn Fn(&mut dyn FnMut(usize));
 
@@ -360,7 +364,7 @@ impl ShellCollider {
     /// The shell as the GPU reads it at the end of the current substep: per particle its
     /// position, its motion over the substep and its normal (zero without normals); then the
     /// grid's bucket starts (buckets + 1) and its items.
-    pub fn gpu_snapshot(&self) -> (Vec<[Vec4; 3]>, Vec<u32>) {
+    pub fn gpu_snapshot(&self) -> ShellSnapshot {
         let particles = self
             .now
             .iter()

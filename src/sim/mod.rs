@@ -469,7 +469,7 @@ pub struct DrivenFrame {
     /// Per substep: every collider in its pose at the end of that substep.
     pub colliders: Vec<Vec<Collider>>,
     /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`].
-    pub shells: Vec<Vec<(Vec<[Vec4; 3]>, Vec<u32>)>>,
+    pub shells: Vec<Vec<crate::collide::shell::ShellSnapshot>>,
 }
 
 /// The per-particle stages of a substep, with what they read and write.
