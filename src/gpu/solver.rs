@@ -65,6 +65,18 @@ pub struct GpuSimulation {
     sweeps_per_frame: u32,
 }
 
+/// Bind group entries for `buffers` at bindings 1, 2, … (binding 0 is each group's uniform).
+fn storage_entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
+    buffers
+        .iter()
+        .enumerate()
+        .map(|(k, b)| wgpu::BindGroupEntry {
+            binding: k as u32 + 1,
+            resource: b.as_entire_binding(),
+        })
+        .collect()
+}
+
 /// A collider as the kernels read it.
 fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
     let mut rotation = glam::Quat::IDENTITY;
@@ -353,12 +365,7 @@ impl GpuSimulation {
                 size: wgpu::BufferSize::new(std::mem::size_of::<GpuParams>() as u64),
             }),
         }];
-        for (k, b) in storage_buffers.iter().enumerate() {
-            entries.push(wgpu::BindGroupEntry {
-                binding: k as u32 + 1,
-                resource: b.as_entire_binding(),
-            });
-        }
+        entries.extend(storage_entries(&storage_buffers));
         let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("drape state and model"),
             layout: &kernels.group0,
@@ -455,7 +462,7 @@ impl GpuSimulation {
             binding: 0,
             resource: contacts.as_entire_binding(),
         }];
-        for (k, b) in [
+        entries.extend(storage_entries(&[
             &cells,
             &pc_bucket,
             &pc_start,
@@ -467,15 +474,7 @@ impl GpuSimulation {
             &shell_info,
             &shell_particle,
             &shell_grid,
-        ]
-        .iter()
-        .enumerate()
-        {
-            entries.push(wgpu::BindGroupEntry {
-                binding: k as u32 + 1,
-                resource: b.as_entire_binding(),
-            });
-        }
+        ]));
         let group2 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("drape particle collisions"),
             layout: &kernels.group2,
