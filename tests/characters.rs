@@ -296,6 +296,93 @@ fn shells_keep_their_spacing_and_cover_the_body() {
     );
 }
 
+/// A UV sphere of radius 0.3 m with `segments` × `segments / 2` quads (outward winding); with
+/// `split`, every triangle has its own three vertices, as a faceted export writes them.
+fn uv_sphere(segments: usize, split: bool) -> (Vec<glam::Vec3>, Vec<[u32; 3]>) {
+    let rings = segments / 2;
+    let at = |i: usize, j: usize| {
+        let (theta, phi) = (
+            std::f32::consts::PI * j as f32 / rings as f32,
+            std::f32::consts::TAU * i as f32 / segments as f32,
+        );
+        0.3 * glam::Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            theta.sin() * phi.sin(),
+        )
+    };
+    let mut vertices = Vec::new();
+    for j in 0..=rings {
+        for i in 0..=segments {
+            vertices.push(at(i, j));
+        }
+    }
+    let index = |i: usize, j: usize| (j * (segments + 1) + i) as u32;
+    let mut triangles = Vec::new();
+    for j in 0..rings {
+        for i in 0..segments {
+            let (a, b, c, d) = (
+                index(i, j),
+                index(i + 1, j),
+                index(i, j + 1),
+                index(i + 1, j + 1),
+            );
+            triangles.push([a, b, c]);
+            triangles.push([b, d, c]);
+        }
+    }
+    if !split {
+        return (vertices, triangles);
+    }
+    let corners: Vec<glam::Vec3> = triangles
+        .iter()
+        .flat_map(|t| t.map(|k| vertices[k as usize]))
+        .collect();
+    let faces = (0..triangles.len() as u32)
+        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        .collect();
+    (corners, faces)
+}
+
+#[test]
+fn shell_normals_follow_the_smooth_surface() {
+    // On a coarse sphere (16 × 8 quads, faces 22.5° apart) the shell particles' normals are the
+    // surface's smooth normal, not their facet's: each within a few degrees of the true radial
+    // direction, where facet normals are off by up to half a facet; a faceted export (split
+    // vertices) gives the same normals.
+    for split in [false, true] {
+        let (v, t) = uv_sphere(16, split);
+        let shell = Shell::sample(&v, &t, 0.01);
+        let p = shell.positions(&v, &t);
+        let n = shell.normals(&v, &t);
+        let worst = p
+            .iter()
+            .zip(&n)
+            .map(|(p, n)| p.normalize().dot(*n).clamp(-1.0, 1.0).acos().to_degrees())
+            .fold(0.0f32, f32::max);
+        let facet_worst = shell
+            .triangle
+            .iter()
+            .zip(&p)
+            .map(|(&k, p)| {
+                let [a, b, c] = t[k as usize].map(|i| v[i as usize]);
+                let facet = (b - a).cross(c - a).normalize();
+                p.normalize()
+                    .dot(facet)
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+            })
+            .fold(0.0f32, f32::max);
+        eprintln!("split {split}: {} particles, normals within {worst:.1}° of radial (facets {facet_worst:.1}°)", p.len());
+        assert!(worst < 6.0, "normals {worst}° off the radial direction");
+        assert!(
+            worst < 0.5 * facet_worst,
+            "smooth {worst}°, facets {facet_worst}°"
+        );
+    }
+}
+
 #[test]
 fn bad_files_give_clear_errors() {
     let dir = common::temp_dir();

@@ -30,6 +30,9 @@ pub struct Shell {
     pub barycentric: Vec<[f32; 2]>,
 }
 
+/// Vertices closer than this [m] share a normal (see [`Shell::normals`]).
+const WELD: f32 = 1e-5;
+
 /// Candidates drawn per particle the surface can hold.
 const OVERSAMPLING: f32 = 40.0;
 
@@ -157,14 +160,47 @@ impl Shell {
             .collect()
     }
 
-    /// Unit normals of the particles' triangles on a frame of the same topology (the side the
-    /// triangle winds counter-clockwise towards: outward on a consistently wound body).
+    /// Unit outward normals at the particles on a frame of the same topology: the surface's
+    /// smooth normal, area-weighted vertex normals (vertices within 10 µm welded, so seams
+    /// do not show) interpolated with the particle's barycentric coordinates. A faceted mesh's
+    /// own triangle normals jump by tens of degrees between neighbouring particles, and cloth
+    /// pushed out along them is spread apart over every edge.
     pub fn normals(&self, vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+        // Welded: vertices within the same 10 µm cell (a seam's two copies of a vertex rarely
+        // agree to the last bit when a generator computed them from different angles).
+        let mut weld: HashMap<[i64; 3], usize> = HashMap::new();
+        let slot: Vec<usize> = vertices
+            .iter()
+            .map(|v| {
+                let n = weld.len();
+                let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
+                *weld.entry(cell).or_insert(n)
+            })
+            .collect();
+        let mut sum = vec![Vec3::ZERO; weld.len()];
+        for t in triangles {
+            let [a, b, c] = corners(vertices, *t);
+            let n = (b - a).cross(c - a);
+            for &i in t {
+                sum[slot[i as usize]] += n;
+            }
+        }
         self.triangle
             .iter()
-            .map(|&t| {
-                let [a, b, c] = corners(vertices, triangles[t as usize]);
-                (b - a).cross(c - a).normalize_or(Vec3::Y)
+            .zip(&self.barycentric)
+            .map(|(&t, &[u, v])| {
+                let [a, b, c] = triangles[t as usize].map(|i| sum[slot[i as usize]]);
+                let face = {
+                    let [p, q, r] = corners(vertices, triangles[t as usize]);
+                    (q - p).cross(r - p)
+                };
+                let smooth = a.normalize_or_zero() * (1.0 - u - v)
+                    + b.normalize_or_zero() * u
+                    + c.normalize_or_zero() * v;
+                smooth
+                    .try_normalize()
+                    .or_else(|| face.try_normalize())
+                    .unwrap_or(Vec3::Y)
             })
             .collect()
     }
