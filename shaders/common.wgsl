@@ -78,7 +78,7 @@ struct Contacts {
     shells: u32,               // characters' shells
     shell_stride: u32,         // shell particles of all shells (one substep's worth)
     grid_stride: u32,          // shell grid entries of all shells (one substep's worth)
-    _pad: u32,
+    nearby: u32,               // 1: `finish` lists each particle's nearby shell particles
 }
 
 // A character's shell (src/collide/shell.rs): where its particles and grid sit in one
@@ -139,6 +139,9 @@ const TINY_LENGTH: f32 = 1e-12;
 @group(2) @binding(9) var<storage, read> shell_info: array<ShellInfo>;
 @group(2) @binding(10) var<storage, read> shell_particle: array<ShellParticle>;
 @group(2) @binding(11) var<storage, read> shell_grid: array<u32>;
+// With collision passes: NEARBY shell particles per garment particle per shell (shell-major),
+// listed by `finish` for the next substep's `contact_pass` (ShellCollider::resolve_nearby).
+@group(2) @binding(12) var<storage, read_write> shell_nearby: array<u32>;
 
 // L / |e| for an edge of squared length `length_squared` (0 when too short to have a direction).
 fn spring_projection_scale(length_squared: f32, rest: f32) -> f32 {

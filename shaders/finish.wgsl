@@ -235,7 +235,9 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
         d = collider_resolve(colliders[params.collider_base + c], xi, d, particle[i].contact_radius);
     }
     for (var s = 0u; s < contacts.shells; s = s + 1u) {
-        d = shell_resolve(s, params.range_start, xi, d, particle[i].contact_radius);
+        // With collision passes, list the shell particles near i for the next ones.
+        let list = select(NO_LIST, (s * params.particles + i) * NEARBY, contacts.nearby != 0u);
+        d = shell_resolve(s, params.range_start, xi, d, particle[i].contact_radius, list);
     }
     x[i] = xi + d;
     velocity[i] = d * params.inv_step;
@@ -246,6 +248,26 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
     } else {
         delta[i] = vec4<f32>(0.0);
     }
+}
+
+// A collision pass inside the solve (Stages::contact_pass on the CPU): collisions and friction on
+// Δ as `finish` does them, each shell tested against the particle's nearby list only.
+@compute @workgroup_size(64)
+fn contact_pass(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if (i >= params.particles || particle[i].inv_mass == 0.0) {
+        return;
+    }
+    let xi = x[i];
+    var d = delta[i];
+    let radius = particle[i].contact_radius;
+    for (var c = 0u; c < params.colliders; c = c + 1u) {
+        d = collider_resolve(colliders[params.collider_base + c], xi, d, radius);
+    }
+    for (var s = 0u; s < contacts.shells; s = s + 1u) {
+        d = shell_resolve_nearby(s, params.range_start, xi, d, radius, (s * params.particles + i) * NEARBY);
+    }
+    delta[i] = d;
 }
 
 // Without time integration (scene E): positions take the displacement, nothing else moves.
@@ -276,6 +298,10 @@ fn attach(@builtin(global_invocation_id) id: vec3<u32>) {
 // ---- Characters' shells: ShellCollider::resolve on the CPU, step for step. ----
 
 const SHELL_FOUND: u32 = 512u;
+// Length of a nearby list (shell::NEARBY), an empty entry, and "keep no list".
+const NEARBY: u32 = 16u;
+const NO_ENTRY: u32 = 0xffffffffu;
+const NO_LIST: u32 = 0xffffffffu;
 
 fn shell_bucket(c: vec3<i32>, table: u32) -> u32 {
     let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
@@ -331,6 +357,32 @@ struct PushOut {
     total: vec3<f32>,
     skin: vec3<f32>,
     contacts: u32,
+    // The nearest candidates within two reaches, sorted by squared distance (when listing).
+    listing: bool,
+    listed: u32,
+    near: array<u32, 16>,
+    far: array<f32, 16>,
+}
+
+fn push_out_at(p: vec3<f32>, listing: bool) -> PushOut {
+    var acc: PushOut;
+    acc.p = p;
+    acc.total = vec3<f32>(0.0);
+    acc.skin = vec3<f32>(0.0);
+    acc.contacts = 0u;
+    acc.listing = listing;
+    acc.listed = 0u;
+    return acc;
+}
+
+// Writes the list kept while pushing out to `shell_nearby` at `at_list` (NO_ENTRY past its end).
+fn write_nearby(acc: PushOut, at_list: u32) {
+    if (!acc.listing) {
+        return;
+    }
+    for (var k = 0u; k < NEARBY; k++) {
+        shell_nearby[at_list + k] = select(NO_ENTRY, acc.near[k], k < acc.listed);
+    }
 }
 
 // Push-out from one candidate (ShellCollider::push_out).
@@ -338,6 +390,18 @@ fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>
     let q = shell_particle[at.particles + j];
     let d = (*acc).p - q.position.xyz;
     let dist2 = dot(d, d);
+    if ((*acc).listing && dist2 < 4.0 * reach * reach
+        && ((*acc).listed < NEARBY || dist2 < (*acc).far[NEARBY - 1u])) {
+        var k = min((*acc).listed, NEARBY - 1u);
+        while (k > 0u && (*acc).far[k - 1u] > dist2) {
+            (*acc).far[k] = (*acc).far[k - 1u];
+            (*acc).near[k] = (*acc).near[k - 1u];
+            k = k - 1u;
+        }
+        (*acc).far[k] = dist2;
+        (*acc).near[k] = j;
+        (*acc).listed = min((*acc).listed + 1u, NEARBY);
+    }
     if (dist2 >= reach * reach) {
         return;
     }
@@ -417,8 +481,9 @@ fn shell_finish(at: ShellAt, x3: vec3<f32>, acc: PushOut) -> vec4<f32> {
     return vec4<f32>(p - x3, 0.0);
 }
 
-// A garment particle against shell `s` at substep `substep` (ShellCollider::resolve).
-fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32) -> vec4<f32> {
+// A garment particle against shell `s` at substep `substep` (ShellCollider::resolve); lists its
+// nearby shell particles at `list` unless that is NO_LIST.
+fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32, list: u32) -> vec4<f32> {
     let at = shell_at(s, substep);
     if (at.info.count == 0u) {
         return delta;
@@ -454,10 +519,11 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
             if (best.found) {
                 p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
             }
-            var acc = PushOut(p, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+            var acc = push_out_at(p, list != NO_LIST);
             for (var k = 0u; k < count; k++) {
                 shell_push_visit(at, found[k], reach, &acc);
             }
+            write_nearby(acc, list);
             return shell_finish(at, x3, acc);
         }
         // Too many candidates to keep: trace with a second walk over the same cells.
@@ -476,7 +542,27 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
             p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
         }
     }
-    var acc = PushOut(p, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    var acc = push_out_at(p, list != NO_LIST);
     shell_push_near(at, reach, &acc);
+    write_nearby(acc, list);
     return shell_finish(at, x3, acc);
+}
+
+// A collision pass's test of a garment particle against shell `s`'s particles listed at `list`
+// (ShellCollider::resolve_nearby): end point only, no listing.
+fn shell_resolve_nearby(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32, list: u32) -> vec4<f32> {
+    if (shell_nearby[list] == NO_ENTRY) {
+        return delta;
+    }
+    let at = shell_at(s, substep);
+    let reach = at.info.radius + radius;
+    var acc = push_out_at(x.xyz + delta.xyz, false);
+    for (var k = 0u; k < NEARBY; k++) {
+        let j = shell_nearby[list + k];
+        if (j == NO_ENTRY) {
+            break;
+        }
+        shell_push_visit(at, j, reach, &acc);
+    }
+    return shell_finish(at, x.xyz, acc);
 }

@@ -205,6 +205,14 @@ fn impossible_values_name_their_field() {
             "solver.omega",
         ),
         (
+            r#"{ "solver": { "contact_passes": 0 }, "garments": [{}] }"#,
+            "solver.contact_passes",
+        ),
+        (
+            r#"{ "solver": { "iterations": 4, "contact_passes": 5 }, "garments": [{}] }"#,
+            "solver.contact_passes",
+        ),
+        (
             r#"{ "colliders": [{ "kind": "sphere", "radius": 1 }], "garments": [{}] }"#,
             "colliders[0].center",
         ),
@@ -221,6 +229,8 @@ fn impossible_values_name_their_field() {
 fn bad_flags_are_input_errors() {
     let err = rejected(GOOD, &["--frames", "0"]);
     assert!(err.contains("--frames"), "{err}");
+    let err = rejected(GOOD, &["--contact-passes", "0"]);
+    assert!(err.contains("--contact-passes"), "{err}");
 }
 
 #[test]

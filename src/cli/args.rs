@@ -152,9 +152,13 @@ pub struct SceneArgs {
     /// Number of frames, overriding the scene's.
     #[arg(long)]
     pub frames: Option<u32>,
-    /// Outer solver iterations per substep, overriding the scene's.
+    /// Outer solver iterations per substep, overriding the scene's (the scene's collision
+    /// passes are capped at this number).
     #[arg(long)]
     pub iterations: Option<u32>,
+    /// Collision passes per substep (1 to the iterations), overriding the scene's.
+    #[arg(long)]
+    pub contact_passes: Option<u32>,
     /// Over-relaxation factor ω in (0, 2), overriding the scene's.
     #[arg(long)]
     pub omega: Option<f32>,

@@ -29,11 +29,13 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     );
     let s = &scene.solver;
     println!(
-        "  solver {} with {} outer × {} inner iterations, ω = {}",
+        "  solver {} with {} outer × {} inner iterations, ω = {}, {} collision pass{} per substep",
         s.kind.name(),
         s.iterations,
         s.inner_iterations,
-        s.omega
+        s.omega,
+        s.contact_passes,
+        if s.contact_passes == 1 { "" } else { "es" }
     );
     for (spec, g) in scene.garments.iter().zip(&garments) {
         if let Some(m) = &spec.placed {

@@ -35,7 +35,12 @@ pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
     }
     if let Some(n) = args.iterations {
         scene.solver.iterations = n;
+        scene.solver.contact_passes = scene.solver.contact_passes.min(n.max(1));
         scene::validate(&scene, &file).map_err(|e| flag("--iterations", e))?;
+    }
+    if let Some(n) = args.contact_passes {
+        scene.solver.contact_passes = n;
+        scene::validate(&scene, &file).map_err(|e| flag("--contact-passes", e))?;
     }
     if let Some(w) = args.omega {
         scene.solver.omega = w;

@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 
 /// Storage buffers one kernel binds (shaders/common.wgsl group 0, the residual group and the
 /// group of particle collisions, attachments and characters' shells).
-pub const STORAGE_BUFFERS_NEEDED: u32 = 27;
+pub const STORAGE_BUFFERS_NEEDED: u32 = 28;
 
 /// A device and queue with what the report says about them (cloning shares them).
 #[derive(Clone)]

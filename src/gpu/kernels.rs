@@ -26,7 +26,7 @@ pub const KERNEL_FILES: [(&str, &str, &[&str]); 6] = [
     (
         "finish.wgsl",
         include_str!("../../shaders/finish.wgsl"),
-        &["finish", "finish_static", "attach"],
+        &["finish", "finish_static", "attach", "contact_pass"],
     ),
     (
         "residual.wgsl",
@@ -66,7 +66,8 @@ pub struct Kernels {
     pub group0: wgpu::BindGroupLayout,
     pub group1: wgpu::BindGroupLayout,
     /// Particle–particle collisions (a uniform, one read-only and five read-write buffers),
-    /// attachments (two read-only buffers) and characters' shells (three read-only buffers).
+    /// attachments (two read-only buffers) and characters' shells (three read-only buffers and
+    /// the read-write nearby lists of collision passes).
     pub group2: wgpu::BindGroupLayout,
     pub predict: wgpu::ComputePipeline,
     pub project: wgpu::ComputePipeline,
@@ -77,6 +78,7 @@ pub struct Kernels {
     pub finish: wgpu::ComputePipeline,
     pub finish_static: wgpu::ComputePipeline,
     pub attach: wgpu::ComputePipeline,
+    pub contact_pass: wgpu::ComputePipeline,
     pub residual_partial: wgpu::ComputePipeline,
     pub residual_total: wgpu::ComputePipeline,
     pub pc_clear: wgpu::ComputePipeline,
@@ -138,6 +140,7 @@ impl Kernels {
         contacts.push(storage(1, true));
         contacts.extend((2..=6).map(|b| storage(b, false)));
         contacts.extend((7..=11).map(|b| storage(b, true)));
+        contacts.push(storage(12, false));
         let group2 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("drape particle collisions"),
             entries: &contacts,
@@ -186,6 +189,7 @@ impl Kernels {
             finish: pipeline("finish"),
             finish_static: pipeline("finish_static"),
             attach: pipeline("attach"),
+            contact_pass: pipeline("contact_pass"),
             residual_partial: pipeline("residual_partial"),
             residual_total: pipeline("residual_total"),
             pc_clear: pipeline("pc_clear"),

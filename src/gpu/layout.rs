@@ -73,7 +73,8 @@ pub struct GpuContacts {
     pub shells: u32,
     pub shell_stride: u32,
     pub grid_stride: u32,
-    pub _pad: u32,
+    /// 1 when `finish` lists nearby shell particles for collision passes.
+    pub nearby: u32,
 }
 
 /// A character's shell (`ShellInfo` in the WGSL).

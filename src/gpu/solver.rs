@@ -412,6 +412,19 @@ impl GpuSimulation {
             shell_stride += count;
             grid_stride += table + 1 + count;
         }
+        // Collision passes test shells against lists `finish` keeps (none yet: all empty).
+        let passes = settings.contact_passes;
+        let listing = passes > 1 && !sim.shells.is_empty();
+        let nearby_entries = if listing {
+            sim.shells.len() * n * crate::collide::shell::NEARBY
+        } else {
+            0
+        };
+        let shell_nearby = init(
+            "shell_nearby",
+            bytemuck::cast_slice(&vec![u32::MAX; nearby_entries]),
+            rw,
+        );
         let contacts = GpuContacts {
             inv_cell: collisions.map_or(0.0, |c| c.inv_cell()),
             diameter: collisions.map_or(0.0, |c| 2.0 * c.radius),
@@ -420,7 +433,7 @@ impl GpuSimulation {
             shells: shells.len() as u32,
             shell_stride,
             grid_stride,
-            _pad: 0,
+            nearby: listing as u32,
         };
         let shell_info = init("shell_info", bytemuck::cast_slice(&shells), read);
         let shell_particle = init(
@@ -474,6 +487,7 @@ impl GpuSimulation {
             &shell_info,
             &shell_particle,
             &shell_grid,
+            &shell_nearby,
         ]));
         let group2 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("drape particle collisions"),
@@ -653,7 +667,22 @@ impl GpuSimulation {
                     GROUP,
                 );
             }
-            for _ in 0..s.iterations {
+            for iteration in 0..s.iterations {
+                // A collision pass after each share of the iterations but the last
+                // (Simulation::run_substeps).
+                let passes = s.contact_passes;
+                if iteration > 0 && passes > 1 {
+                    let ends_share = (1..passes).any(|p| s.iterations * p / passes == iteration);
+                    if ends_share {
+                        dispatch(
+                            &mut pass,
+                            &k.contact_pass,
+                            self.finish_slots + substep,
+                            n,
+                            GROUP,
+                        );
+                    }
+                }
                 let sweeps = |pass: &mut wgpu::ComputePass| {
                     if recording {
                         dispatch(

@@ -156,6 +156,11 @@ pub struct SolverSettings {
     pub inner_iterations: u32,
     /// Successive over-relaxation factor ω in (0, 2). Default 1 (plain Gauss-Seidel/Jacobi).
     pub omega: f32,
+    /// Collision passes per substep: the iterations run in this many even shares, each followed
+    /// by pushing particles out of the colliders and characters, so the solver works from
+    /// positions that are out of them (friction acts once, at the end, on everything pushed).
+    /// Default 1: collisions once, after the solve. Between 1 and `iterations`.
+    pub contact_passes: u32,
 }
 
 impl Default for SolverSettings {
@@ -165,6 +170,7 @@ impl Default for SolverSettings {
             iterations: 10,
             inner_iterations: 1,
             omega: 1.0,
+            contact_passes: 1,
         }
     }
 }

@@ -44,6 +44,16 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
             "must be at least 1".into(),
         ));
     }
+    if solver.contact_passes == 0 || solver.contact_passes > solver.iterations {
+        return Err(fail(
+            "solver.contact_passes".into(),
+            format!(
+                "must lie between 1 and solver.iterations ({}): each pass follows a share of \
+                 the iterations (got {})",
+                solver.iterations, solver.contact_passes
+            ),
+        ));
+    }
     if !(solver.omega > 0.0 && solver.omega < 2.0) {
         return Err(fail(
             "solver.omega".into(),

@@ -58,6 +58,9 @@ pub struct Simulation {
     grid: RwLock<Grid>,
     /// Each particle's push out of the others in the current substep.
     pushes: Vec<Vec4>,
+    /// With several collision passes, each garment particle's nearby shell particles, per
+    /// shell (shell-major), found at the end of the previous substep.
+    nearby: Vec<crate::collide::shell::Nearby>,
     /// Particles following animated targets.
     pub attachments: attach::Attachments,
     /// Frames per second (the clock of characters and keyframes).
@@ -132,6 +135,7 @@ impl Simulation {
             particle_collisions,
             grid,
             pushes,
+            nearby: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
@@ -340,6 +344,16 @@ impl Simulation {
         };
         let velocities = Shared::new(&mut self.state.velocities);
         let pushes = Shared::new(&mut self.pushes);
+        let passes = self.solver.settings.contact_passes;
+        let nearby_len = if passes > 1 {
+            self.shells.len() * self.model.particle_count()
+        } else {
+            0
+        };
+        if self.nearby.len() != nearby_len {
+            self.nearby = vec![[u32::MAX; crate::collide::shell::NEARBY]; nearby_len];
+        }
+        let nearby = Shared::new(&mut self.nearby);
         let model = &self.model;
         let recording = self.residuals.is_some();
         let residuals = Mutex::new(self.residuals.as_mut());
@@ -367,6 +381,7 @@ impl Simulation {
             b: buffers,
             velocities,
             pushes: self.particle_collisions.is_some().then_some(pushes),
+            nearby,
         };
         let solver = &self.solver;
         let particles = self.particle_collisions.as_ref();
@@ -376,8 +391,17 @@ impl Simulation {
             stages.predict(m);
             m.sync();
             for k in 0..count {
-                // 2. Solve the constraints (every solver stage ends with a sync).
-                solver.solve(m, model, &buffers, &observe);
+                // 2. Solve the constraints (every solver stage ends with a sync), in shares
+                // with collision passes between them.
+                let iterations = solver.settings.iterations;
+                for pass in 0..passes {
+                    let share = iterations * (pass + 1) / passes - iterations * pass / passes;
+                    solver.iterate(m, model, &buffers, &observe, share);
+                    if pass + 1 < passes {
+                        stages.contact_pass(m);
+                        m.sync();
+                    }
+                }
                 // 3a. Particle–particle collisions: one thread sorts the predicted positions into
                 // the grid, then every thread computes its particles' pushes.
                 if let Some(pc) = particles {
@@ -482,6 +506,8 @@ struct Stages<'a> {
     velocities: Shared<Vec4>,
     /// Particle–particle pushes of this substep, when those collisions are on.
     pushes: Option<Shared<Vec4>>,
+    /// Nearby shell particles of each garment particle, per shell (empty with one pass).
+    nearby: Shared<crate::collide::shell::Nearby>,
 }
 
 impl Stages<'_> {
@@ -509,6 +535,32 @@ impl Stages<'_> {
         self.b.target.set(i, t);
     }
 
+    /// A collision pass inside the solve, for this thread's free particles: collisions and
+    /// friction on Δ as at the end of the substep, the characters' shells tested only against
+    /// each particle's nearby shell particles.
+    fn contact_pass(&self, m: &Member) {
+        let (model, b) = (self.model, &self.b);
+        let particles = model.particle_count();
+        for i in m.particles(&model.colour_ranges) {
+            if model.inv_mass[i] == 0.0 {
+                continue;
+            }
+            // SAFETY: particle i is this thread's.
+            unsafe {
+                let x = b.x.get(i);
+                let mut d = b.delta.get(i);
+                let r = model.contact_radius[i];
+                for c in self.colliders {
+                    d = c.resolve(x, d, r);
+                }
+                for (k, s) in self.shells.iter().enumerate() {
+                    d = s.resolve_nearby(x, d, r, &self.nearby.get(k * particles + i));
+                }
+                b.delta.set(i, d);
+            }
+        }
+    }
+
     /// Ends the substep for this thread's free particles: long-range attachments to the pins,
     /// collisions, then x += Δ and v = Δ/h; and, when `predict_next`, the next prediction.
     fn finish(&self, m: &Member, predict_next: bool) {
@@ -530,11 +582,16 @@ impl Stages<'_> {
                     let offset = (x - b.x.get(p)) + (d - b.target.get(p));
                     d += constraint::tether_correction(offset, t.rest);
                 }
+                let r = model.contact_radius[i];
                 for c in self.colliders {
-                    d = c.resolve(x, d, model.contact_radius[i]);
+                    d = c.resolve(x, d, r);
                 }
-                for s in self.shells {
-                    d = s.resolve(x, d, model.contact_radius[i]);
+                let particles = model.particle_count();
+                for (k, s) in self.shells.iter().enumerate() {
+                    // With collision passes, list the shell particles near i for the next ones.
+                    let nearby =
+                        (!self.nearby.is_empty()).then(|| self.nearby.get_mut(k * particles + i));
+                    d = s.resolve(x, d, r, nearby);
                 }
                 b.x.set(i, x + d);
                 if let Some(v) = self.verlet {

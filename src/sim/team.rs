@@ -170,6 +170,17 @@ impl<T: Copy> Shared<T> {
         *self.ptr.add(i) = value;
     }
 
+    /// Element `i`, for writing in place.
+    ///
+    /// # Safety
+    /// No other thread reads or writes `i` while the reference lives.
+    #[inline(always)]
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn get_mut(&self, i: usize) -> &mut T {
+        debug_assert!(i < self.len);
+        &mut *self.ptr.add(i)
+    }
+
     /// The whole slice, for reading.
     ///
     /// # Safety

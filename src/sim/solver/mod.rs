@@ -100,8 +100,21 @@ impl Solver {
         b: &Buffers,
         observe: &(dyn Fn(&Member) + Sync),
     ) {
+        self.iterate(m, model, b, observe, self.settings.iterations);
+    }
+
+    /// Runs `iterations` outer iterations on `b.delta` (a share of a step's, when collisions
+    /// run between shares).
+    pub fn iterate(
+        &self,
+        m: &Member,
+        model: &Model,
+        b: &Buffers,
+        observe: &(dyn Fn(&Member) + Sync),
+        iterations: u32,
+    ) {
         let s = &self.settings;
-        for _ in 0..s.iterations {
+        for _ in 0..iterations {
             if s.kind == SolverKind::Pbd {
                 pbd::iterate(m, model, b, s.omega);
                 observe(m);
