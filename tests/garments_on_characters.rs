@@ -250,13 +250,12 @@ fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_
         "particles inside the ball per frame: swept {swept:?} ({torn_swept} springs torn), \
          end point only {plain:?} ({torn_plain} torn)"
     );
-    // Measured: at most 9 of 961 particles in the ball in one frame with the swept test (a few
-    // slip past where the ball's silhouette grazes the cloth), 42 without.
+    // Measured: none of the 961 particles in the ball in any frame with the swept test, 41
+    // without. (With the facets' own normals, before smooth shell normals, 9 slipped past
+    // where the ball's silhouette grazes the cloth: the tangent planes of neighbouring shell
+    // particles disagreed by a facet's angle.)
     let (most_swept, most_plain) = (*swept.iter().max().unwrap(), *plain.iter().max().unwrap());
     assert!(most_plain > 20, "end point only: {plain:?}");
-    assert!(
-        4 * most_swept <= most_plain,
-        "swept {swept:?}, end point only {plain:?}"
-    );
+    assert_eq!(most_swept, 0, "swept {swept:?}, end point only {plain:?}");
     assert!(torn_swept > torn_plain, "the caught cloth should tear");
 }
