@@ -511,15 +511,20 @@ struct Stages<'a> {
 }
 
 impl Stages<'_> {
+    /// This thread's particles the simulation moves (pinned and attached ones are never
+    /// written, so other threads may read them in any stage).
+    fn free_particles<'m>(&'m self, m: &'m Member) -> impl Iterator<Item = usize> + 'm {
+        m.particles(&self.model.colour_ranges)
+            .filter(|&i| self.model.inv_mass[i] != 0.0)
+    }
+
     /// Predicts this thread's free particles: Δ and t become the inertial displacement (zero
     /// without integration). Pinned particles keep Δ = t = 0 from the start and are never written,
     /// so other threads may read them in any stage.
     fn predict(&self, m: &Member) {
-        for i in m.particles(&self.model.colour_ranges) {
-            if self.model.inv_mass[i] != 0.0 {
-                // SAFETY: a free particle is read and written by its own thread only.
-                unsafe { self.predict_one(i) };
-            }
+        for i in self.free_particles(m) {
+            // SAFETY: a free particle is read and written by its own thread only.
+            unsafe { self.predict_one(i) };
         }
     }
 
@@ -541,10 +546,7 @@ impl Stages<'_> {
     fn contact_pass(&self, m: &Member) {
         let (model, b) = (self.model, &self.b);
         let particles = model.particle_count();
-        for i in m.particles(&model.colour_ranges) {
-            if model.inv_mass[i] == 0.0 {
-                continue;
-            }
+        for i in self.free_particles(m) {
             // SAFETY: particle i is this thread's.
             unsafe {
                 let x = b.x.get(i);
@@ -565,10 +567,7 @@ impl Stages<'_> {
     /// collisions, then x += Δ and v = Δ/h; and, when `predict_next`, the next prediction.
     fn finish(&self, m: &Member, predict_next: bool) {
         let (model, b) = (self.model, &self.b);
-        for i in m.particles(&model.colour_ranges) {
-            if model.inv_mass[i] == 0.0 {
-                continue;
-            }
+        for i in self.free_particles(m) {
             // SAFETY: particle i is this thread's; the pins read by the tethers are never written.
             unsafe {
                 let x = b.x.get(i);
