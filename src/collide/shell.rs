@@ -266,9 +266,13 @@ impl ShellCollider {
         if nearby[0] == u32::MAX {
             return delta;
         }
+        // A shell re-sampled per frame (its topology changes) may have fewer particles than the
+        // one that left the list: its missing entries are skipped.
         let each = |visit: &mut dyn FnMut(usize)| {
             for &i in nearby.iter().take_while(|&&i| i != u32::MAX) {
-                visit(i as usize);
+                if (i as usize) < self.now.len() {
+                    visit(i as usize);
+                }
             }
         };
         let x3 = x.truncate();
