@@ -75,22 +75,8 @@ fn passes_survive_a_shell_that_shrinks_between_frames() {
     // square that becomes a 1 m square (a quarter of the shell particles) at frame 10 must carry
     // on, and stay on it.
     let dir = common::temp_dir();
-    let big = "v -1 0.5 -1\nv 1 0.5 -1\nv 1 0.5 1\nv -1 0.5 1\nf 1 3 2\nf 1 4 3\n";
-    let small = "v -0.5 0.5 -0.5\nv 0.5 0.5 -0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\nv 0 0.5 0\n\
-                 f 1 5 2\nf 2 5 3\nf 3 5 4\nf 4 5 1\n";
-    for k in 1..=10 {
-        common::write(dir.path(), &format!("floor_{k:04}.obj"), big);
-    }
-    common::write(dir.path(), "floor_0011.obj", small);
-    let text = format!(
-        r#"{{ "fps": 60, "frames": 16, "substeps": 4, "backend": "cpu",
-              "solver": {{ "iterations": 6, "contact_passes": 3 }},
-              "garments": [{{ "name": "cloth", "resolution": [12, 12], "size": [0.4, 0.4],
-                             "position": [0, 0.56, 0] }}],
-              "characters": [{{ "name": "floor", "file": {:?}, "sequence_fps": 60, "radius": 0.02 }}] }}"#,
-        dir.path().display().to_string()
-    );
-    let scene = common::scene(&text);
+    common::shrinking_floor(dir.path(), 10);
+    let scene = common::cloth_on_shrinking_floor(dir.path(), 16, 3);
     let options = drape::bake::BakeOptions {
         out: dir.path().join("out"),
         scene_file: "test".into(),

@@ -2,7 +2,8 @@
 //! mannequin raising its arms never sinks more than half a shell particle radius into the body's
 //! particle layer; the shell cache is reused by the second bake; a ball thrown through a curtain
 //! faster than its shell is thick catches (and tears) the cloth with the swept test, and
-//! swallows it without; the GPU resolves shells as the CPU does.
+//! swallows it without; the GPU resolves shells as the CPU does, with collision passes and for a
+//! character whose topology changes too.
 
 mod common;
 
@@ -258,4 +259,48 @@ fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_
     assert!(most_plain > 20, "end point only: {plain:?}");
     assert_eq!(most_swept, 0, "swept {swept:?}, end point only {plain:?}");
     assert!(torn_swept > torn_plain, "the caught cloth should tear");
+}
+
+#[test]
+fn the_gpu_follows_a_character_whose_topology_changes() {
+    // A character re-sampled per frame (its mesh changes at frame 10: the 2 m floor becomes a
+    // 1 m one with a quarter of the shell particles): the GPU lays every substep's shell out at
+    // its largest size, padding with particles out of reach, and resolves it as the CPU does,
+    // collision passes included.
+    let Some(ctx) = common::gpu_context() else {
+        return;
+    };
+    let dir = common::temp_dir();
+    common::shrinking_floor(dir.path(), 10);
+    let scene = common::cloth_on_shrinking_floor(dir.path(), 16, 3);
+    let mut warnings = Vec::new();
+    let characters =
+        drape::bake::load_characters(&scene, &dir.path().join("cache"), &mut warnings).unwrap();
+    let mut cpu = drape::sim::Simulation::new(&scene);
+    let mut on_gpu = drape::sim::Simulation::new(&scene);
+    for c in characters {
+        assert!(c.mesh.is_none(), "the floor's topology changes");
+        cpu.shells.push(c.shell.clone());
+        on_gpu.shells.push(c.shell);
+    }
+    let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    let mut gap = 0.0f32;
+    for _ in 0..scene.frames {
+        cpu.step_frame();
+        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gap = gap.max(common::largest_gap(&cpu, &on_gpu));
+    }
+    let lowest = on_gpu
+        .export_positions()
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MAX, f32::min);
+    eprintln!(
+        "re-sampled shell: CPU and GPU within {gap:.2e} m over 16 frames; GPU lowest {lowest:.4} m"
+    );
+    assert!(gap <= 1e-5, "CPU and GPU differ by {gap} m");
+    assert!(
+        lowest > 0.5,
+        "the cloth fell through to {lowest} m on the GPU"
+    );
 }

@@ -92,8 +92,7 @@ fn bucket(c: IVec3, buckets: usize) -> usize {
 }
 
 impl HashGrid {
-    fn build(&mut self, points: &[Vec3], cell: f32) {
-        let buckets = ShellCollider::buckets_for(points.len());
+    fn build(&mut self, points: &[Vec3], cell: f32, buckets: usize) {
         self.cell = cell;
         self.start.clear();
         self.start.resize(buckets + 1, 0);
@@ -201,7 +200,8 @@ impl ShellCollider {
             vec![Vec3::ZERO; self.now.len()]
         };
         let cell = self.cell_for(garment_radius);
-        self.grid.build(&self.now, cell);
+        self.grid
+            .build(&self.now, cell, Self::buckets_for(self.most_particles()));
     }
 
     /// Resolves a garment particle starting the step at `x` and moving by `delta`, of contact
@@ -429,8 +429,13 @@ impl ShellCollider {
     /// The shell as the GPU reads it at the end of the current substep: per particle its
     /// position, its motion over the substep and its normal (zero without normals); then the
     /// grid's bucket starts (buckets + 1) and its items.
+    /// A shell re-sampled per frame is padded to its most particles over the frames (the GPU
+    /// lays every substep out alike): padding particles sit 10¹⁸ m away, where no garment
+    /// particle comes within reach, and no grid bucket lists them.
     pub fn gpu_snapshot(&self) -> ShellSnapshot {
-        let particles = self
+        let most = self.most_particles();
+        let far = [Vec4::splat(1e18), Vec4::ZERO, Vec4::ZERO];
+        let mut particles: Vec<[Vec4; 3]> = self
             .now
             .iter()
             .enumerate()
@@ -439,9 +444,17 @@ impl ShellCollider {
                 [p.extend(0.0), self.motion[i].extend(0.0), n.extend(0.0)]
             })
             .collect();
+        particles.resize(most, far);
         let mut grid = self.grid.start.clone();
         grid.extend_from_slice(&self.grid.items);
+        grid.resize(self.grid.start.len() + most, 0);
         (particles, grid)
+    }
+
+    /// The most shell particles of any frame (all frames' alike unless the character's topology
+    /// changes and its shell is re-sampled per frame); the grid has buckets for this many.
+    pub fn most_particles(&self) -> usize {
+        self.frames.iter().map(Vec::len).max().unwrap_or(0)
     }
 
     /// Hash buckets of the grid for `particles` shell particles.

@@ -152,18 +152,6 @@ impl GpuSimulation {
                 reason: "sequential Gauss-Seidel (gs) has no parallel GPU form: use rbgs, jacobi or pbd, or the cpu backend".into(),
             });
         }
-        if let Some(s) = sim
-            .shells
-            .iter()
-            .find(|s| s.frames.iter().any(|f| f.len() != s.particles()))
-        {
-            return Err(Error::Gpu {
-                reason: format!(
-                    "character {:?} changes topology between frames, so its shell is re-sampled per frame: the CPU backend simulates that",
-                    s.name
-                ),
-            });
-        }
         let device = &ctx.device;
         let model = sim.model();
         let n = model.particle_count();
@@ -397,8 +385,9 @@ impl GpuSimulation {
         let mut shells = Vec::new();
         let (mut shell_stride, mut grid_stride) = (0u32, 0u32);
         for s in &sim.shells {
-            let count = s.particles() as u32;
-            let table = crate::collide::ShellCollider::buckets_for(s.particles()) as u32;
+            // A shell re-sampled per frame takes its most particles' room in every substep.
+            let count = s.most_particles() as u32;
+            let table = crate::collide::ShellCollider::buckets_for(s.most_particles()) as u32;
             shells.push(GpuShellInfo {
                 first: shell_stride,
                 count,

@@ -71,3 +71,29 @@ pub fn largest_gap(a: &drape::sim::Simulation, b: &drape::sim::Simulation) -> f3
         .map(|(p, q)| (*p - *q).length())
         .fold(0.0, f32::max)
 }
+
+/// A character whose topology changes: `dir` gets a frame sequence of a horizontal 2 m square
+/// at height 0.5 m (two triangles) for `big_frames` frames, then a 1 m square of four triangles
+/// (a quarter of the area, so its re-sampled shell has about a quarter of the particles).
+pub fn shrinking_floor(dir: &Path, big_frames: usize) {
+    let big = "v -1 0.5 -1\nv 1 0.5 -1\nv 1 0.5 1\nv -1 0.5 1\nf 1 3 2\nf 1 4 3\n";
+    let small = "v -0.5 0.5 -0.5\nv 0.5 0.5 -0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\nv 0 0.5 0\n\
+                 f 1 5 2\nf 2 5 3\nf 3 5 4\nf 4 5 1\n";
+    for k in 1..=big_frames {
+        write(dir, &format!("floor_{k:04}.obj"), big);
+    }
+    write(dir, &format!("floor_{:04}.obj", big_frames + 1), small);
+}
+
+/// A scene of a 0.4 m cloth 6 cm above the floor `shrinking_floor` wrote in `dir` (one file
+/// per frame, shell radius 2 cm), with `passes` collision passes.
+pub fn cloth_on_shrinking_floor(dir: &Path, frames: u32, passes: u32) -> Scene {
+    scene(&format!(
+        r#"{{ "fps": 60, "frames": {frames}, "substeps": 4, "backend": "cpu",
+              "solver": {{ "iterations": 6, "contact_passes": {passes} }},
+              "garments": [{{ "name": "cloth", "resolution": [12, 12], "size": [0.4, 0.4],
+                             "position": [0, 0.56, 0] }}],
+              "characters": [{{ "name": "floor", "file": {:?}, "sequence_fps": 60, "radius": 0.02 }}] }}"#,
+        dir.display().to_string()
+    ))
+}
