@@ -251,13 +251,6 @@ fn validate_mesh_garment(g: &GarmentSpec) -> std::result::Result<(), (&'static s
             "a mesh garment starts at its rest shape (scale it with `scale`)".into(),
         ));
     }
-    if g.tear_strain.is_some() {
-        return Err((
-            "tear_strain",
-            "mesh garments cannot tear yet: their exported surface is embedded in the lattice"
-                .into(),
-        ));
-    }
     check_attachments(g, &crate::garment::MESH_REGIONS)
 }
 
