@@ -148,6 +148,9 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
 
 /// Checks one garment; returns its particle count, or (field, reason).
 fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, String)> {
+    if let Some(t) = g.tear_strain {
+        positive(t).map_err(|r| ("tear_strain", r))?;
+    }
     let axes = match g.kind {
         GarmentKind::Sheet => 2,
         GarmentKind::Rope => 1,
@@ -201,9 +204,6 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
         }
     }
     check_cells(&g.pins, axes, &g.resolution, "pins")?;
-    if let Some(t) = g.tear_strain {
-        positive(t).map_err(|r| ("tear_strain", r))?;
-    }
     for a in &g.attachments {
         if let ParticleSelection::Cells(cells) = &a.particles {
             check_cells(cells, axes, &g.resolution, "attachments")?
