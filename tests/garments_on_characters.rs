@@ -111,16 +111,7 @@ fn gpu_matches_cpu_on_the_stool(contact_passes: u32, close_until: u32) {
     );
     let mut scene = common::scene(&text);
     scene.solver.contact_passes = contact_passes;
-    let mut warnings = Vec::new();
-    let characters =
-        drape::bake::load_characters(&scene, &dir.path().join("cache"), &mut warnings).unwrap();
-    let mut cpu = drape::sim::Simulation::new(&scene);
-    let mut on_gpu = drape::sim::Simulation::new(&scene);
-    for c in characters {
-        cpu.shells.push(c.shell.clone());
-        on_gpu.shells.push(c.shell);
-    }
-    let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    let (mut cpu, mut on_gpu, mut gpu) = on_both_backends(&scene, dir.path(), ctx);
     let mut landing = 0.0f32;
     let mut deepest = 0.0f32;
     for frame in 1..=scene.frames {
@@ -273,17 +264,11 @@ fn the_gpu_follows_a_character_whose_topology_changes() {
     let dir = common::temp_dir();
     common::shrinking_floor(dir.path(), 10);
     let scene = common::cloth_on_shrinking_floor(dir.path(), 16, 3);
-    let mut warnings = Vec::new();
-    let characters =
-        drape::bake::load_characters(&scene, &dir.path().join("cache"), &mut warnings).unwrap();
-    let mut cpu = drape::sim::Simulation::new(&scene);
-    let mut on_gpu = drape::sim::Simulation::new(&scene);
-    for c in characters {
-        assert!(c.mesh.is_none(), "the floor's topology changes");
-        cpu.shells.push(c.shell.clone());
-        on_gpu.shells.push(c.shell);
-    }
-    let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    let (mut cpu, mut on_gpu, mut gpu) = on_both_backends(&scene, dir.path(), ctx);
+    assert!(
+        on_gpu.shells[0].frames[0].len() != on_gpu.shells[0].frames[15].len(),
+        "the floor's shell is re-sampled"
+    );
     let mut gap = 0.0f32;
     for _ in 0..scene.frames {
         cpu.step_frame();
@@ -303,4 +288,28 @@ fn the_gpu_follows_a_character_whose_topology_changes() {
         lowest > 0.5,
         "the cloth fell through to {lowest} m on the GPU"
     );
+}
+
+/// A scene's simulation with its characters loaded (shell cache in `dir`), twice: one for the
+/// CPU, one whose state the GPU simulation (also returned) steps.
+fn on_both_backends(
+    scene: &drape::scene::Scene,
+    dir: &Path,
+    ctx: drape::gpu::GpuContext,
+) -> (
+    drape::sim::Simulation,
+    drape::sim::Simulation,
+    drape::gpu::GpuSimulation,
+) {
+    let mut warnings = Vec::new();
+    let characters =
+        drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
+    let mut cpu = drape::sim::Simulation::new(scene);
+    let mut on_gpu = drape::sim::Simulation::new(scene);
+    for c in characters {
+        cpu.shells.push(c.shell.clone());
+        on_gpu.shells.push(c.shell);
+    }
+    let gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    (cpu, on_gpu, gpu)
 }

@@ -30,11 +30,7 @@ fn faces(path: &std::path::Path) -> usize {
 fn a_pulled_cloth_tears_and_its_faces_follow() {
     let dir = common::temp_dir();
     common::write(dir.path(), "scene.json", &scene(true));
-    let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/report.json")).unwrap())
-            .unwrap();
+    let report = common::bake_report(dir.path());
     let torn = report["torn_springs"].as_u64().unwrap();
     assert!(torn > 0, "nothing tore");
     assert_eq!(report["stable"], true);

@@ -276,11 +276,7 @@ fn a_torn_mesh_garment_loses_the_faces_over_the_cut() {
                                 "keyframes": [{ "time": 0.1 },
                                               { "time": 0.9, "translation": [-0.3, -0.9, 0.4] }] }] }] }"#,
     );
-    let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/report.json")).unwrap())
-            .unwrap();
+    let report = common::bake_report(dir.path());
     let torn = report["torn_springs"].as_u64().unwrap();
     assert!(torn > 0, "nothing tore");
     let (rest, whole) = read_obj(&dir.path().join("out/obj/sheet_0001.obj"));

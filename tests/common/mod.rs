@@ -97,3 +97,11 @@ pub fn cloth_on_shrinking_floor(dir: &Path, frames: u32, passes: u32) -> Scene {
         dir.display().to_string()
     ))
 }
+
+/// Bakes `dir/scene.json` into `dir/out` with the drape binary (it must succeed) and returns
+/// the parsed report.json.
+pub fn bake_report(dir: &Path) -> serde_json::Value {
+    let out = drape(dir, &["bake", "scene.json", "--out", "out"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    serde_json::from_str(&std::fs::read_to_string(dir.join("out/report.json")).unwrap()).unwrap()
+}
