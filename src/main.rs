@@ -10,6 +10,16 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Mesa's Vulkan device-select layer connects to a Wayland display to learn the desktop's
+    // default GPU; on a machine without one (a farm node, CI, ssh) libwayland then prints
+    // "error: XDG_RUNTIME_DIR is invalid or not set in the environment." twice, which reads as
+    // drape failing. drape picks its adapter itself, so without a display session the layer is
+    // switched off (its own documented switch). Set before any thread starts.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none()
+        && std::env::var_os("NODEVICE_SELECT").is_none()
+    {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
     let code = match cli::run() {
         Ok(code) => code,
         Err(e) => {

@@ -213,6 +213,40 @@ fn usd_layer_has_units_axis_and_a_time_sample_per_frame() {
         .collect();
     let obj = obj_positions(&out.join("obj/sheet_0003.obj"));
     assert_eq!(Vec3::new(first[0], first[1], first[2]), obj[0]);
+    // UVs and normals as vertex primvars: the OBJ's texture coordinates, and frame 3's normals
+    // those of OBJ frame 3.
+    let obj_text = std::fs::read_to_string(out.join("obj/sheet_0003.obj")).unwrap();
+    let numbers = |line: &str| -> Vec<f32> {
+        line.split(|c: char| "()[], ".contains(c))
+            .filter_map(|v| v.parse().ok())
+            .collect()
+    };
+    let st_line = sheet
+        .lines()
+        .find(|l| l.contains("texCoord2f[] primvars:st = ["))
+        .expect("primvars:st");
+    let st = numbers(st_line.split_once('=').unwrap().1);
+    let obj_uvs: Vec<f32> = obj_text
+        .lines()
+        .filter_map(|l| l.strip_prefix("vt "))
+        .flat_map(|l| l.split_whitespace().map(|v| v.parse::<f32>().unwrap()))
+        .collect();
+    assert_eq!(st, obj_uvs, "primvars:st are the OBJ's UVs");
+    let normals = &sheet[sheet.find("primvars:normals.timeSamples").unwrap()..];
+    let line = normals
+        .lines()
+        .find(|l| l.trim_start().starts_with("3: ["))
+        .expect("normals sample 3");
+    let usd_normals = numbers(line.trim_start().strip_prefix("3:").unwrap());
+    let obj_normals: Vec<f32> = obj_text
+        .lines()
+        .filter_map(|l| l.strip_prefix("vn "))
+        .flat_map(|l| l.split_whitespace().map(|v| v.parse::<f32>().unwrap()))
+        .collect();
+    assert_eq!(usd_normals.len(), obj_normals.len());
+    for (a, b) in usd_normals.iter().zip(&obj_normals) {
+        assert!((a - b).abs() < 1e-5, "normal {a} vs OBJ {b}");
+    }
     assert_eq!(
         samples
             .lines()

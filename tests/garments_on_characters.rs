@@ -301,15 +301,16 @@ fn on_both_backends(
     drape::sim::Simulation,
     drape::gpu::GpuSimulation,
 ) {
-    let mut warnings = Vec::new();
-    let characters =
-        drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
-    let mut cpu = drape::sim::Simulation::new(scene);
-    let mut on_gpu = drape::sim::Simulation::new(scene);
-    for c in characters {
-        cpu.shells.push(c.shell.clone());
-        on_gpu.shells.push(c.shell);
-    }
+    // The bake's own builder, twice (the second load reuses the shell cache).
+    let build = || {
+        let mut warnings = Vec::new();
+        let characters =
+            drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
+        drape::bake::simulation(scene, characters, "<test scene>")
+            .unwrap()
+            .sim
+    };
+    let (cpu, on_gpu) = (build(), build());
     let gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     (cpu, on_gpu, gpu)
 }

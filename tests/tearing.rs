@@ -95,4 +95,32 @@ fn the_gpu_tears_the_same_cloth() {
         (a - b).abs() <= 0.1 * a,
         "CPU tore {a} springs, the GPU {b}"
     );
+    // Every OBJ frame has the faces of the model as torn by then, on both backends: the GPU's
+    // frames are written on a thread, which once kept the whole cloth's faces to the end.
+    let per_frame = |backend: &str| -> Vec<usize> {
+        (1..=60)
+            .map(|k| faces(&dir.path().join(format!("{backend}/obj/cloth_{k:04}.obj"))))
+            .collect()
+    };
+    let (cpu, gpu) = (per_frame("cpu"), per_frame("gpu"));
+    let whole = 2 * 19 * 19;
+    assert_eq!((cpu[0], gpu[0]), (whole, whole), "frame 1 is whole");
+    let lost = (whole - cpu[59]) as f64;
+    assert!(
+        gpu[59] < whole,
+        "the GPU's last frame still has all {whole} faces"
+    );
+    for (k, (c, g)) in cpu.iter().zip(&gpu).enumerate() {
+        assert!(
+            (*c as f64 - *g as f64).abs() <= 0.1 * lost + 2.0,
+            "frame {}: CPU {c} faces, GPU {g} (CPU lost {lost} by the end)",
+            k + 1
+        );
+    }
+    let (meshes, _) = drape::export::gltf::read(&dir.path().join("gpu/scene.glb")).unwrap();
+    assert_eq!(
+        meshes[0].triangles.len(),
+        gpu[59],
+        "the GPU's glTF ends torn too"
+    );
 }

@@ -12,8 +12,9 @@
 //! read-back, so per-iteration times there include no round trip).
 
 use super::chart::{write_atomically, Chart, Series, Style};
+use crate::backend::Backend;
 use crate::error::{Error, Result};
-use crate::gpu::{GpuContext, GpuSimulation};
+use crate::gpu::GpuContext;
 use crate::scene::{reference, Scene, SolverKind};
 use crate::sim::Simulation;
 use std::path::Path;
@@ -166,34 +167,21 @@ pub fn measure(
     // a frame does not depend on it), and returns the fastest one's seconds: the least disturbed
     // by the rest of the machine.
     let mut frame = |sim: &mut Simulation, warm: bool, repeats: u32| -> Result<f64> {
-        match gpu {
-            Some(open) => {
-                let mut g = GpuSimulation::new(open()?, sim)?;
-                backend = format!("gpu: {}", g.adapter());
-                if warm {
-                    g.step_frame(sim)?;
-                }
-                let mut best = f64::MAX;
-                for _ in 0..repeats {
-                    let begin = Instant::now();
-                    g.step_frame(sim)?;
-                    best = best.min(begin.elapsed().as_secs_f64());
-                }
-                Ok(best)
-            }
-            None => {
-                if warm {
-                    sim.step_frame();
-                }
-                let mut best = f64::MAX;
-                for _ in 0..repeats {
-                    let begin = Instant::now();
-                    sim.step_frame();
-                    best = best.min(begin.elapsed().as_secs_f64());
-                }
-                Ok(best)
-            }
+        let mut b = match gpu {
+            Some(open) => Backend::gpu(open()?, sim)?,
+            None => Backend::Cpu,
+        };
+        backend = b.name();
+        if warm {
+            b.step_frame(sim)?;
         }
+        let mut best = f64::MAX;
+        for _ in 0..repeats {
+            let begin = Instant::now();
+            b.step_frame(sim)?;
+            best = best.min(begin.elapsed().as_secs_f64());
+        }
+        Ok(best)
     };
     let mut recorded = make(iterations, true);
     frame(&mut recorded, false, 1)?;

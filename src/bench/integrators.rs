@@ -73,7 +73,7 @@ impl StudyScene {
         let mut wind = None;
         if self == StudyScene::Flag {
             spec.name = Some("flag".into());
-            spec.size = vec![1.5, 1.0];
+            spec.size = Some(vec![1.5, 1.0]);
             // The pole along the left edge at x = 0.
             spec.position = [0.75, 1.0, 0.0];
             spec.pins = (0..n as i64).map(|row| vec![0, row]).collect();
@@ -336,7 +336,7 @@ pub fn rule_cases() -> Vec<(&'static str, MassSpring)> {
         case("rope of 20 pinned at one end (a chain)", &|g| {
             g.kind = crate::scene::GarmentKind::Rope;
             g.resolution = vec![20];
-            g.size = vec![1.0];
+            g.size = Some(vec![1.0]);
             g.pins = vec![vec![0]];
             g.stiffness.stretch *= 100.0;
         }),

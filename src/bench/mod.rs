@@ -155,7 +155,7 @@ pub fn time_size(
     frames: u32,
     gpu: Option<&dyn Fn() -> Result<crate::gpu::GpuContext>>,
 ) -> Result<SizeTiming> {
-    use crate::gpu::GpuSimulation;
+    use crate::backend::Backend;
     let mut e = resized(
         &crate::scene::reference::load(crate::scene::reference::ENLARGED_CLOTH, "e"),
         n,
@@ -171,26 +171,17 @@ pub fn time_size(
     // Runs `count` frames of `scene` after one warm-up frame; returns seconds per frame.
     let mut run = |scene: &Scene, count: u32| -> Result<f64> {
         let mut sim = Simulation::new(scene);
-        match gpu {
-            Some(open) => {
-                let mut g = GpuSimulation::new(open()?, &sim)?;
-                backend = format!("gpu: {}", g.adapter());
-                g.step_frame(&mut sim)?;
-                let start = Instant::now();
-                for _ in 0..count {
-                    g.step_frame(&mut sim)?;
-                }
-                Ok(start.elapsed().as_secs_f64() / count as f64)
-            }
-            None => {
-                sim.step_frame();
-                let start = Instant::now();
-                for _ in 0..count {
-                    sim.step_frame();
-                }
-                Ok(start.elapsed().as_secs_f64() / count as f64)
-            }
+        let mut b = match gpu {
+            Some(open) => Backend::gpu(open()?, &sim)?,
+            None => Backend::Cpu,
+        };
+        backend = b.name();
+        b.step_frame(&mut sim)?;
+        let start = Instant::now();
+        for _ in 0..count {
+            b.step_frame(&mut sim)?;
         }
+        Ok(start.elapsed().as_secs_f64() / count as f64)
     };
     let per_iteration = run(&e, 2)? / iterations as f64;
     let per_frame = run(&h, frames)?;

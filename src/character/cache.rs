@@ -10,10 +10,12 @@ use std::path::Path;
 
 /// The first 8 bytes of every shell cache.
 pub const MAGIC: &[u8; 8] = b"DRAPESHL";
-/// Layout version.
-pub const VERSION: u32 = 1;
+/// Layout version (2: a checksum of everything before it ends the file).
+pub const VERSION: u32 = 2;
 /// Header bytes before the particle bindings.
 pub const HEADER_BYTES: usize = 40;
+/// Bytes of the checksum that ends the file: FNV-1a (64 bits) of every byte before it.
+pub const CHECKSUM_BYTES: usize = 8;
 
 /// A shell and its positions on every frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,6 +27,9 @@ pub struct ShellCache {
     /// Hash of the inputs this cache was built from.
     pub inputs: u64,
 }
+
+/// FNV-1a's starting value.
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// FNV-1a, 64 bits: a stable hash of the inputs (not for security).
 pub(crate) fn fnv(hash: u64, bytes: &[u8]) -> u64 {
@@ -42,7 +47,7 @@ pub fn input_hash(
     fps: f32,
     frames: usize,
 ) -> Result<u64> {
-    let mut h = 0xcbf2_9ce4_8422_2325;
+    let mut h = FNV_OFFSET;
     for f in files {
         let bytes = std::fs::read(f).map_err(|e| Error::io(f, "cannot read", e))?;
         h = fnv(h, &bytes);
@@ -103,7 +108,25 @@ impl ShellCache {
                     .for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
             }
         }
+        let checksum = fnv(FNV_OFFSET, &b);
+        b.extend_from_slice(&checksum.to_le_bytes());
         b
+    }
+
+    /// True when every particle names one of `triangles` triangles with finite barycentric
+    /// coordinates and every position is finite: a cache is checked against the character it is
+    /// used for, so even a cache whose checksum holds cannot index past its mesh.
+    pub fn fits(&self, triangles: usize) -> bool {
+        self.shell
+            .triangle
+            .iter()
+            .all(|&t| (t as usize) < triangles)
+            && self
+                .shell
+                .barycentric
+                .iter()
+                .all(|b| b[0].is_finite() && b[1].is_finite())
+            && self.frames.iter().flatten().all(|p| p.is_finite())
     }
 
     /// Parses a cache file's bytes; `file` names it in errors.
@@ -124,14 +147,25 @@ impl ShellCache {
                 u32_at(8)
             )));
         }
-        let (n, frames) = (u32_at(12) as usize, u32_at(16) as usize);
-        let expected = HEADER_BYTES + n * 12 + frames * n * 12;
-        if bytes.len() != expected {
+        let (n, frames) = (u32_at(12) as u64, u32_at(16) as u64);
+        let expected = (n * 12)
+            .checked_mul(frames + 1)
+            .and_then(|b| b.checked_add((HEADER_BYTES + CHECKSUM_BYTES) as u64));
+        if expected != Some(bytes.len() as u64) {
             return Err(bad(format!(
-                "{} bytes where the header promises {expected}",
-                bytes.len()
+                "{} bytes where the header promises {}",
+                bytes.len(),
+                expected.map_or("more than 2⁶⁴".to_string(), |e| e.to_string())
             )));
         }
+        let body = bytes.len() - CHECKSUM_BYTES;
+        let stored = u64::from_le_bytes(bytes[body..].try_into().expect("8 bytes"));
+        if fnv(FNV_OFFSET, &bytes[..body]) != stored {
+            return Err(bad(
+                "its checksum does not match its contents (the file is corrupted)".into(),
+            ));
+        }
+        let (n, frames) = (n as usize, frames as usize);
         let mut shell = Shell {
             radius: f32_at(20),
             triangle: Vec::with_capacity(n),
@@ -167,10 +201,30 @@ impl ShellCache {
         ShellCache::from_bytes(&bytes, &path.display().to_string())
     }
 
-    /// Writes the cache to `path` through a temporary file renamed into place.
+    /// Writes the cache to `path` through a temporary file renamed into place (removed again
+    /// if anything fails).
     pub fn write(&self, path: &Path) -> Result<()> {
-        let temp = path.with_extension("tmp-drape");
-        std::fs::write(&temp, self.to_bytes()).map_err(|e| Error::io(&temp, "cannot write", e))?;
-        std::fs::rename(&temp, path).map_err(|e| Error::io(path, "cannot write", e))
+        let mut name = path.file_name().unwrap_or_default().to_os_string();
+        name.push(format!(".tmp-drape-{}", std::process::id()));
+        let temp = path.with_file_name(name);
+        let written = std::fs::write(&temp, self.to_bytes())
+            .map_err(|e| Error::io(path, "cannot write", e))
+            .and_then(|()| {
+                std::fs::rename(&temp, path).map_err(|e| Error::io(path, "cannot write", e))
+            });
+        if written.is_err() {
+            let _ = std::fs::remove_file(&temp);
+        }
+        written
+    }
+
+    /// True when `path` holds a drape shell cache (of any version): the one kind of existing file
+    /// `drape shell --out` may replace.
+    pub fn is_cache_file(path: &Path) -> bool {
+        use std::io::Read;
+        let mut head = [0u8; 8];
+        std::fs::File::open(path)
+            .and_then(|mut f| f.read_exact(&mut head))
+            .is_ok_and(|()| &head == MAGIC)
     }
 }

@@ -110,10 +110,18 @@ impl Asset {
     /// Reads any file assimp reads. Errors name the file and the reason.
     pub fn open(path: &Path) -> Result<Asset> {
         if !path.is_file() {
+            let (kind, reason) = if path.exists() {
+                (
+                    std::io::ErrorKind::InvalidInput,
+                    "not a regular file (a mesh file is needed)",
+                )
+            } else {
+                (std::io::ErrorKind::NotFound, "no such file")
+            };
             return Err(Error::io(
                 path,
                 "cannot read",
-                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+                std::io::Error::new(kind, reason),
             ));
         }
         let name = path.to_str().ok_or_else(|| Error::InvalidField {
@@ -151,6 +159,7 @@ impl Asset {
                 .filter(|f| f.0.len() == 3)
                 .map(|f| [f.0[0], f.0[1], f.0[2]])
                 .collect();
+            check_mesh(ai, &triangles, file)?;
             let mut weights = vec![Vec::new(); ai.vertices.len()];
             let mut bones = Vec::new();
             for bone in &ai.bones {
@@ -344,6 +353,43 @@ impl Asset {
     }
 }
 
+/// Refuses a mesh with a non-finite vertex or texture coordinate, or a triangle that names a
+/// vertex it does not have: nothing downstream can make sense of them.
+fn check_mesh(ai: &russimp::mesh::Mesh, triangles: &[[u32; 3]], file: &str) -> Result<()> {
+    let bad = |reason: String| Error::InvalidField {
+        file: file.into(),
+        field: format!("mesh {:?}", ai.name),
+        reason,
+    };
+    if let Some(k) = ai
+        .vertices
+        .iter()
+        .position(|v| !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite()))
+    {
+        return Err(bad(format!("vertex {k} is not finite (NaN or infinite)")));
+    }
+    if let Some(t) = triangles
+        .iter()
+        .find(|t| t.iter().any(|&i| i as usize >= ai.vertices.len()))
+    {
+        return Err(bad(format!(
+            "triangle {t:?} names a vertex past its {}",
+            ai.vertices.len()
+        )));
+    }
+    let uvs_finite = ai
+        .texture_coords
+        .first()
+        .and_then(|set| set.as_ref())
+        .is_none_or(|set| set.iter().all(|t| t.x.is_finite() && t.y.is_finite()));
+    if !uvs_finite {
+        return Err(bad(
+            "a texture coordinate is not finite (NaN or infinite)".into()
+        ));
+    }
+    Ok(())
+}
+
 /// Linear interpolation of vector keys at `t`, holding the ends.
 fn sample_vec(keys: &[(f64, Vec3)], t: f64) -> Option<Vec3> {
     let (i, f) = bracket(keys.iter().map(|k| k.0), keys.len(), t)?;
@@ -372,7 +418,8 @@ fn bracket(
         return None;
     }
     let times: Vec<f64> = times.collect();
-    if t <= times[0] {
+    // A NaN time holds the first key rather than indexing with it.
+    if t.is_nan() || t <= times[0] {
         return Some((0, None));
     }
     if t >= times[len - 1] {

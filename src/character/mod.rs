@@ -69,6 +69,26 @@ impl Default for CharacterOptions {
 }
 
 impl CharacterOptions {
+    /// Rejects impossible values: (the scene field's name, the reason). The command line maps
+    /// the field to its flag (`scale` → `--scale`).
+    pub fn check(&self) -> std::result::Result<(), (&'static str, String)> {
+        use crate::scene::validate::{finite3, positive};
+        positive(self.scale).map_err(|r| ("scale", r))?;
+        positive(self.speed).map_err(|r| ("speed", r))?;
+        if let Some(f) = self.sequence_fps {
+            positive(f).map_err(|r| ("sequence_fps", r))?;
+        }
+        finite3(self.position).map_err(|r| ("position", r))?;
+        finite3(self.rotation).map_err(|r| ("rotation", r))?;
+        if !self.time_offset.is_finite() {
+            return Err((
+                "time_offset",
+                format!("must be finite (got {})", self.time_offset),
+            ));
+        }
+        Ok(())
+    }
+
     /// The placement of file coordinates in the scene.
     pub fn transform(&self) -> Mat4 {
         let up = match self.up {
@@ -160,6 +180,8 @@ impl Character {
             Some(_) => frames.max(1),
             None => frames.max(1).min(stored.len()),
         };
+        let vertices = stored.iter().map(Vec::len).max().unwrap_or(0);
+        check_frames_memory(source, vertices, count)?;
         for k in 0..count {
             let at = (options.time_offset + k as f32 * options.speed / fps) * source_fps;
             let i = (at.floor().max(0.0) as usize).min(stored.len() - 1);
@@ -218,6 +240,7 @@ impl Character {
         let duration = clip.map_or(0.0, |c| asset.clips[c].duration);
         let transform = options.transform();
         let count = if clip.is_some() { frames.max(1) } else { 1 };
+        check_frames_memory(source, asset.pose(None, 0.0).len(), count)?;
         let frames = (0..count)
             .map(|k| {
                 let t = options.clip_time(k, fps, duration);
@@ -267,6 +290,33 @@ impl Character {
             .collect()
     }
 
+    /// Ok when a shell of `radius` on this character fits drape's limits (see
+    /// [`Shell::check_size`]), checked from its surface area before any particle is sampled.
+    pub fn check_shell(&self, radius: f32) -> std::result::Result<(), String> {
+        let area = (0..self.triangles.len())
+            .map(|k| shell::surface_area(self.frame(k), self.triangles_of(k)))
+            .fold(0.0, f64::max);
+        Shell::check_size(area, radius, self.frames.len())
+    }
+
+    /// A warning when the character is implausibly large or small for a body in metres (over
+    /// 10 m or under 5 cm), with the `scale` that makes it 1.75 m tall.
+    pub fn size_warning(&self, scale: f32) -> Option<String> {
+        let (lo, hi) = self.bounds(0);
+        let size = (hi - lo).max_element();
+        if !size.is_finite() || (0.05..=10.0).contains(&size) {
+            return None;
+        }
+        let suggested = scale * 1.75 / size;
+        // Three significant digits, without an exponent for everyday values.
+        let digits = (2 - suggested.log10().floor() as i32).clamp(0, 12) as usize;
+        Some(format!(
+            "{} is {size:.3} m tall at scale {scale}: is it in other units than metres? \
+             scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres)",
+            self.source.display()
+        ))
+    }
+
     /// Triangles of frame `k`.
     pub fn triangles_of(&self, k: usize) -> &[[u32; 3]] {
         &self.triangles[k.min(self.triangles.len() - 1)]
@@ -295,6 +345,18 @@ impl Character {
         let w = (f - k as f32).clamp(0.0, 1.0);
         a.iter().zip(b).map(|(p, q)| p.lerp(*q, w)).collect()
     }
+}
+
+/// Refuses `frames` frames of `vertices` vertices that would not fit in memory (exit 2 naming
+/// `frames`) before they are computed: a bake keeps each frame's vertices about three times
+/// (the frames, the exported mesh and the skin attachments follow).
+fn check_frames_memory(source: &Path, vertices: usize, frames: usize) -> Result<()> {
+    let bytes = (vertices as u64 * 12 * 3).saturating_mul(frames as u64);
+    crate::limits::fits_in_memory(bytes).map_err(|reason| Error::InvalidField {
+        file: source.display().to_string(),
+        field: "frames".into(),
+        reason: format!("{frames} frames of its {vertices} vertices {reason}"),
+    })
 }
 
 /// The files of a source: itself, a folder's mesh files in name order, or a `%0Nd` pattern's

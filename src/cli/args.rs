@@ -71,25 +71,25 @@ pub struct CharacterArgs {
     #[command(flatten)]
     pub look: CharacterLook,
     /// Placement after scale and up axis [m], e.g. `--position 0,0,0.5`.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0])]
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0], allow_hyphen_values = true)]
     pub position: Vec<f32>,
     /// Rotation after scale and up axis, Euler degrees applied X, Y, Z.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0])]
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0], allow_hyphen_values = true)]
     pub rotation: Vec<f32>,
     /// Clip time at the first frame [s].
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub time_offset: f32,
     /// Clip seconds per second.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub speed: f32,
     /// Loop the clip instead of holding its last pose.
     #[arg(long)]
     pub r#loop: bool,
     /// Frames per second to sample at.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
     pub fps: f32,
     /// Frames to sample (default: the clip's length, or 1 for a static mesh).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub frames: Option<usize>,
 }
 
@@ -100,16 +100,16 @@ pub struct CharacterLook {
     #[arg(long)]
     pub clip: Option<String>,
     /// Character: file units to metres.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub scale: f32,
     /// Character: the file's up axis.
     #[arg(long, value_enum, default_value_t = UpArg::Y)]
     pub up: UpArg,
     /// Character: frame rate of a sequence of files (default: one file per sampled frame).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub sequence_fps: Option<f32>,
     /// Character: collision particle radius [m].
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
     pub radius: f32,
 }
 
@@ -150,20 +150,20 @@ pub struct SceneArgs {
     #[arg(long, value_enum)]
     pub solver: Option<SolverArg>,
     /// Number of frames, overriding the scene's.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub frames: Option<u32>,
     /// Outer solver iterations per substep, overriding the scene's (the scene's collision
     /// passes are capped at this number).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub iterations: Option<u32>,
     /// Collision passes per substep (1 to the iterations), overriding the scene's.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub contact_passes: Option<u32>,
     /// Over-relaxation factor ω in (0, 2), overriding the scene's.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub omega: Option<f32>,
     /// Substeps per frame, overriding the scene's.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub substeps: Option<u32>,
 }
 
@@ -174,8 +174,8 @@ pub struct BakeArgs {
     /// Output folder (created; a previous bake there is replaced). Default: out/<scene name>.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Worker threads (default: every core).
-    #[arg(long)]
+    /// Worker threads (default: every core; more than the cores are clamped, with a warning).
+    #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
     /// Where to simulate, overriding the scene's `backend`: `gpu` takes any adapter (software
     /// ones too), `auto` a hardware GPU when there is one, else the CPU.

@@ -11,12 +11,15 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("json"));
         if !is_scene {
+            super::shell::check_look(&args.look)?;
             let options = super::shell::look_options(&args.look);
             return super::shell::inspect(path, &options, args.look.radius, 60.0);
         }
     }
     let (scene, file) = resolve::scene(&args.scene)?;
     let garments = drape::garment::build_all(&scene);
+    drape::garment::check_selections(&scene, &garments, &file)?;
+    drape::bake::check_memory(&scene, &file)?;
     let model = Model::new(&garments);
     println!("scene '{}' ({file}): valid", scene.name);
     println!(

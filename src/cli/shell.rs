@@ -37,6 +37,66 @@ pub fn up(u: UpArg) -> drape::character::UpAxis {
     }
 }
 
+/// The flag a character field is typed as (`time_offset` → `--time-offset`).
+fn flag(field: &str) -> String {
+    format!("--{}", field.replace('_', "-"))
+}
+
+fn bad_flag(field: &str, reason: String) -> drape::Error {
+    drape::Error::InvalidArgument {
+        flag: flag(field),
+        reason,
+    }
+}
+
+/// Checks the flags of `CharacterLook` as the scene's character fields are checked.
+pub fn check_look(look: &CharacterLook) -> drape::Result<()> {
+    look_options(look)
+        .check()
+        .map_err(|(field, reason)| bad_flag(field, reason))?;
+    if !(look.radius.is_finite() && look.radius > 0.0) {
+        return Err(bad_flag(
+            "radius",
+            format!("must be a finite number above zero (got {})", look.radius),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks every flag of `CharacterArgs`.
+pub fn check_args(a: &CharacterArgs) -> drape::Result<()> {
+    check_look(&a.look)?;
+    options(a)
+        .check()
+        .map_err(|(field, reason)| bad_flag(field, reason))?;
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        return Err(bad_flag(
+            "fps",
+            format!("must be a finite number above zero (got {})", a.fps),
+        ));
+    }
+    if a.frames == Some(0) {
+        return Err(bad_flag("frames", "must be at least 1".into()));
+    }
+    Ok(())
+}
+
+/// Refuses an `--out` that is a folder or an existing file other than a shell cache: `drape
+/// shell` replaces only its own caches.
+fn check_out(out: &std::path::Path) -> drape::Result<()> {
+    let reason = if out.is_dir() {
+        "is a folder; give the cache file's path, e.g. walker.shell"
+    } else if out.exists() && !ShellCache::is_cache_file(out) {
+        "exists and is not a drape shell cache: refusing to overwrite it"
+    } else {
+        return Ok(());
+    };
+    Err(drape::Error::InvalidArgument {
+        flag: "--out".into(),
+        reason: format!("{} {reason}", out.display()),
+    })
+}
+
 /// Loads a character with its clip's length (or `frames`) at `fps`.
 pub fn load(
     path: &Path,
@@ -72,16 +132,17 @@ pub fn load(
 
 pub fn run(args: ShellArgs) -> anyhow::Result<i32> {
     let a = &args.character;
-    if !(a.look.radius.is_finite() && a.look.radius > 0.0) {
-        return Err(drape::Error::InvalidArgument {
-            flag: "--radius".into(),
-            reason: format!("must be above zero (got {})", a.look.radius),
-        }
-        .into());
-    }
+    check_args(a)?;
+    check_out(&args.out)?;
     let options = options(a);
     let start = Instant::now();
     let character = load(&a.character, &options, a.fps, a.frames)?;
+    if let Some(w) = character.size_warning(a.look.scale) {
+        eprintln!("drape: warning: {w}");
+    }
+    character
+        .check_shell(a.look.radius)
+        .map_err(|reason| bad_flag("radius", reason))?;
     let inputs = cache::input_hash(
         &sequence_files(&a.character)?,
         &options,
@@ -126,6 +187,9 @@ pub fn inspect(
     fps: f32,
 ) -> anyhow::Result<i32> {
     let character = load(path, options, fps, None)?;
+    if let Some(w) = character.size_warning(options.scale) {
+        eprintln!("drape: warning: {w}");
+    }
     println!("character {}: valid", path.display());
     for (i, (name, duration)) in character.clips.iter().enumerate() {
         let label = if name.is_empty() {
@@ -152,6 +216,9 @@ pub fn inspect(
             hi - lo
         );
     }
+    character
+        .check_shell(radius)
+        .map_err(|reason| bad_flag("radius", reason))?;
     let shell =
         drape::character::Shell::sample(&character.frames[0], &character.triangles[0], radius);
     let (binding, positions) = shell.memory_bytes(character.frames.len());

@@ -171,7 +171,11 @@ impl ParticleCollisions {
         let mut push = Vec4::ZERO;
         for corner in 0..8 {
             let cell: [i32; 3] =
-                std::array::from_fn(|a| c[a] + if corner >> a & 1 == 1 { side[a] } else { 0 });
+                // Wrapping: cells only feed the hash, and a particle flung past i32 cells (a
+                // blow-up, caught by the stability rule) must not panic here first.
+                std::array::from_fn(|a| {
+                    c[a].wrapping_add(if corner >> a & 1 == 1 { side[a] } else { 0 })
+                });
             let b = self.bucket_of(cell);
             // Two cells can share a bucket: visit each bucket once.
             if buckets[..seen].contains(&b) {

@@ -120,8 +120,14 @@ impl HashGrid {
     #[inline]
     fn near_segment(&self, a: Vec3, b: Vec3, mut visit: impl FnMut(usize)) {
         let buckets = self.start.len() - 1;
-        let lo = (a.min(b) / self.cell).floor().as_ivec3() - IVec3::ONE;
-        let hi = (a.max(b) / self.cell).floor().as_ivec3() + IVec3::ONE;
+        let lo = (a.min(b) / self.cell)
+            .floor()
+            .as_ivec3()
+            .saturating_sub(IVec3::ONE);
+        let hi = (a.max(b) / self.cell)
+            .floor()
+            .as_ivec3()
+            .saturating_add(IVec3::ONE);
         for x in lo.x..=hi.x {
             for y in lo.y..=hi.y {
                 for z in lo.z..=hi.z {
@@ -144,7 +150,7 @@ impl HashGrid {
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    let b = bucket(c + IVec3::new(dx, dy, dz), buckets);
+                    let b = bucket(c.wrapping_add(IVec3::new(dx, dy, dz)), buckets);
                     // Hash collisions can map two cells to one bucket: visit each bucket once.
                     if seen[..n].contains(&b) {
                         continue;

@@ -149,6 +149,28 @@ pub fn usda_text(meshes: &[AnimatedMesh], fps: f32) -> String {
             points(&mut s, first);
             s.push('\n');
         }
+        // Texture coordinates and smooth normals per vertex, so a textured, shaded garment
+        // renders from the layer alone (the normals follow every frame).
+        if let (Some(uvs), false) = (&mesh.uvs, curves) {
+            s.push_str("        texCoord2f[] primvars:st = [");
+            for (i, [u, v]) in uvs.iter().enumerate() {
+                if i > 0 {
+                    s.push_str(", ");
+                }
+                let _ = write!(s, "({u}, {v})");
+            }
+            s.push_str("] (\n            interpolation = \"vertex\"\n        )\n");
+        }
+        if !curves {
+            s.push_str("        normal3f[] primvars:normals (\n            interpolation = \"vertex\"\n        )\n");
+            s.push_str("        normal3f[] primvars:normals.timeSamples = {\n");
+            for (k, frame) in mesh.frames.iter().enumerate() {
+                let _ = write!(s, "            {}: ", k + 1);
+                points(&mut s, &super::obj::vertex_normals(&mesh.triangles, frame));
+                s.push_str(",\n");
+            }
+            s.push_str("        }\n");
+        }
         s.push_str("        point3f[] points.timeSamples = {\n");
         for (k, frame) in mesh.frames.iter().enumerate() {
             let _ = write!(s, "            {}: ", k + 1);

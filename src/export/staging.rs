@@ -1,66 +1,81 @@
 //! Outputs are written into a temporary folder beside the destination and moved into place only
 //! when everything is written, so a bake that fails on bad input leaves no partial folder.
 //!
-//! An existing destination is replaced only if it is empty or holds a previous bake (a
-//! `report.json`): drape never deletes a folder it did not write.
+//! Rules a pipeline can rely on:
+//! - An existing destination is replaced only if it is empty or is a previous bake: its
+//!   `report.json` is a drape report and every other entry is something a bake writes. drape
+//!   never deletes a folder it did not write.
+//! - The destination is resolved once (`out/../out` is `out`), so the two renames that replace a
+//!   previous bake always name the same folder; if the second fails the first is undone.
+//! - Staging (`.NAME.tmp-PID`) and replaced (`.NAME.old-PID`) folders of processes that no longer
+//!   run are cleaned up by the next bake into the same destination; a previous bake left aside by
+//!   a process killed between the two renames is put back first.
+//! - A destination that cannot be created or written is bad input (exit 2, naming `--out`);
+//!   a write that fails later (a full disk) is a failure while running (exit 1).
 
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
+
+/// Entries a bake writes into its folder (besides `report.json`): folders, and files by
+/// extension.
+const BAKE_FOLDERS: [&str; 4] = ["obj", "pc2", "preview", "checkpoints"];
+const BAKE_EXTENSIONS: [&str; 4] = ["glb", "gltf", "bin", "usda"];
 
 /// A temporary output folder that becomes `destination` on [`Staging::commit`] and is removed if
 /// dropped uncommitted.
 #[derive(Debug)]
 pub struct Staging {
+    /// The destination as the user named it (for messages).
+    shown: PathBuf,
+    /// The destination with its parent resolved (absolute, no `..`, no symbolic links).
     destination: PathBuf,
     temp: PathBuf,
     committed: bool,
+    /// What was cleaned up or restored beside the destination (for the report's warnings).
+    pub notes: Vec<String>,
+}
+
+fn bad_out(reason: String) -> Error {
+    Error::InvalidArgument {
+        flag: "--out".into(),
+        reason,
+    }
 }
 
 impl Staging {
     /// Creates `.<name>.tmp-<pid>` beside `destination` (creating missing parent folders).
     pub fn new(destination: &Path) -> Result<Staging> {
-        if destination.exists() {
-            let replaceable = destination.is_dir()
-                && (destination.join("report.json").is_file()
-                    || std::fs::read_dir(destination)
-                        .map(|mut d| d.next().is_none())
-                        .unwrap_or(false));
-            if !replaceable {
-                return Err(Error::InvalidArgument {
-                    flag: "--out".into(),
-                    reason: format!(
-                        "{} exists and is not a drape bake (no report.json): refusing to replace it",
-                        destination.display()
-                    ),
-                });
-            }
-        }
-        let name = destination
+        let shown = destination.to_path_buf();
+        let resolved = resolve(destination)?;
+        let name = resolved
             .file_name()
-            .ok_or_else(|| Error::InvalidArgument {
-                flag: "--out".into(),
-                reason: format!("{} does not name a folder", destination.display()),
-            })?
+            .expect("resolved destinations end in a name")
             .to_string_lossy()
             .to_string();
-        let parent = match destination.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        // An output folder that cannot be made is a bad --out, like one that is not a bake.
-        std::fs::create_dir_all(&parent).map_err(|e| Error::InvalidArgument {
-            flag: "--out".into(),
-            reason: format!("cannot create {}: {e}", parent.display()),
-        })?;
+        let parent = resolved
+            .parent()
+            .expect("resolved destinations have a parent");
+        let notes = clean_stale(parent, &name, &resolved);
+        if resolved.exists() || resolved.is_symlink() {
+            if let Err(why) = replaceable(&resolved) {
+                return Err(bad_out(format!(
+                    "{} exists and is not a drape bake ({why}): refusing to replace it",
+                    shown.display()
+                )));
+            }
+        }
         let temp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
         if temp.exists() {
             std::fs::remove_dir_all(&temp).map_err(|e| Error::io(&temp, "cannot remove", e))?;
         }
-        std::fs::create_dir(&temp).map_err(|e| Error::io(&temp, "cannot create", e))?;
+        std::fs::create_dir(&temp)
+            .map_err(|e| bad_out(format!("cannot write into {} ({e})", parent.display())))?;
         Ok(Staging {
-            destination: destination.to_path_buf(),
+            shown,
+            destination: resolved,
             temp,
             committed: false,
+            notes,
         })
     }
 
@@ -69,21 +84,46 @@ impl Staging {
         &self.temp
     }
 
-    /// Moves the temporary folder to the destination, replacing a previous bake there.
+    /// `e` with any path inside the staging folder shown at its place in the destination: a
+    /// user never sees the hidden staging name.
+    pub fn public_error(&self, e: Error) -> Error {
+        match e {
+            Error::Io {
+                path,
+                action,
+                source,
+            } => Error::Io {
+                path: match path.strip_prefix(&self.temp) {
+                    Ok(rest) => self.shown.join(rest),
+                    Err(_) => path,
+                },
+                action,
+                source,
+            },
+            other => other,
+        }
+    }
+
+    /// Moves the temporary folder to the destination, replacing a previous bake there. Returns
+    /// the destination as the user named it.
     pub fn commit(mut self) -> Result<PathBuf> {
-        if self.destination.exists() {
-            let old = self.temp.with_extension("old");
-            std::fs::rename(&self.destination, &old)
-                .map_err(|e| Error::io(&self.destination, "cannot replace", e))?;
-            std::fs::rename(&self.temp, &self.destination)
-                .map_err(|e| Error::io(&self.destination, "cannot create", e))?;
+        let destination = self.destination.clone();
+        if destination.exists() {
+            let old = old_folder(&destination, std::process::id());
+            std::fs::rename(&destination, &old)
+                .map_err(|e| Error::io(&self.shown, "cannot replace", e))?;
+            if let Err(e) = std::fs::rename(&self.temp, &destination) {
+                // Never lose the previous bake: put it back.
+                let _ = std::fs::rename(&old, &destination);
+                return Err(Error::io(&self.shown, "cannot create", e));
+            }
             let _ = std::fs::remove_dir_all(&old);
         } else {
-            std::fs::rename(&self.temp, &self.destination)
-                .map_err(|e| Error::io(&self.destination, "cannot create", e))?;
+            std::fs::rename(&self.temp, &destination)
+                .map_err(|e| Error::io(&self.shown, "cannot create", e))?;
         }
         self.committed = true;
-        Ok(self.destination.clone())
+        Ok(self.shown.clone())
     }
 }
 
@@ -93,4 +133,153 @@ impl Drop for Staging {
             let _ = std::fs::remove_dir_all(&self.temp);
         }
     }
+}
+
+/// `destination` with its parent created and resolved: absolute, without `.`, `..` or symbolic
+/// links above the last name.
+fn resolve(destination: &Path) -> Result<PathBuf> {
+    let absolute = std::path::absolute(destination)
+        .map_err(|e| bad_out(format!("{}: {e}", destination.display())))?;
+    // A name ending in `..` or `.` (`--out out/..`) names an existing folder: resolve it whole.
+    let (parent, name) = match (absolute.parent(), absolute.file_name()) {
+        (Some(p), Some(n))
+            if !matches!(
+                destination.components().next_back(),
+                Some(std::path::Component::ParentDir | std::path::Component::CurDir)
+            ) =>
+        {
+            (p.to_path_buf(), n.to_os_string())
+        }
+        _ => {
+            let whole = std::fs::canonicalize(&absolute)
+                .map_err(|e| bad_out(format!("{}: {e}", destination.display())))?;
+            match (whole.parent(), whole.file_name()) {
+                (Some(p), Some(n)) => (p.to_path_buf(), n.to_os_string()),
+                _ => {
+                    return Err(bad_out(format!(
+                        "{} does not name a folder drape can replace",
+                        destination.display()
+                    )))
+                }
+            }
+        }
+    };
+    std::fs::create_dir_all(&parent)
+        .map_err(|e| bad_out(format!("cannot create {}: {e}", parent.display())))?;
+    let parent = std::fs::canonicalize(&parent)
+        .map_err(|e| bad_out(format!("{}: {e}", parent.display())))?;
+    Ok(parent.join(name))
+}
+
+/// Ok when `dir` may be replaced: an empty folder, or a previous bake; else why not.
+fn replaceable(dir: &Path) -> std::result::Result<(), String> {
+    if !dir.is_dir() || dir.is_symlink() {
+        return Err("not a folder".into());
+    }
+    let entries: Vec<std::fs::DirEntry> = std::fs::read_dir(dir)
+        .map_err(|e| format!("cannot read it: {e}"))?
+        .collect::<std::io::Result<_>>()
+        .map_err(|e| format!("cannot read it: {e}"))?;
+    if entries.is_empty() {
+        return Ok(());
+    }
+    let report = dir.join("report.json");
+    let text = std::fs::read_to_string(&report).map_err(|_| "no report.json".to_string())?;
+    let schema = serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|v| v.get("schema")?.as_str().map(str::to_string));
+    if !schema.is_some_and(|s| s.starts_with("drape.report/")) {
+        return Err("its report.json is not a drape report".into());
+    }
+    for entry in entries {
+        let name = entry.file_name().to_string_lossy().to_string();
+        let kind = entry.file_type().map_err(|e| e.to_string())?;
+        let ours = if kind.is_dir() {
+            BAKE_FOLDERS.contains(&name.as_str())
+        } else if kind.is_file() {
+            name == "report.json"
+                || Path::new(&name)
+                    .extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| BAKE_EXTENSIONS.contains(&e))
+        } else {
+            false
+        };
+        if !ours {
+            return Err(format!("it holds {name:?}, which a bake does not write"));
+        }
+    }
+    Ok(())
+}
+
+/// Where a previous bake is set aside while the new one moves in.
+fn old_folder(destination: &Path, pid: u32) -> PathBuf {
+    let name = destination
+        .file_name()
+        .expect("resolved destinations end in a name")
+        .to_string_lossy();
+    destination.with_file_name(format!(".{name}.old-{pid}"))
+}
+
+/// True when process `pid` is still running (on Unix; elsewhere every process counts as alive,
+/// so nothing is cleaned).
+fn alive(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        let Ok(pid) = libc::pid_t::try_from(pid) else {
+            return false;
+        };
+        // SAFETY: signal 0 only checks that the process exists; nothing is sent.
+        let result = unsafe { libc::kill(pid, 0) };
+        result == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// Removes staging and set-aside folders of dead processes beside `destination`, first putting
+/// back a previous bake that a killed process had set aside. Returns what it did.
+fn clean_stale(parent: &Path, name: &str, destination: &Path) -> Vec<String> {
+    let mut notes = Vec::new();
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return notes;
+    };
+    let (tmp, old) = (format!(".{name}.tmp-"), format!(".{name}.old"));
+    let mut stale: Vec<(PathBuf, bool)> = entries
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let file = e.file_name().to_string_lossy().to_string();
+            let (is_old, pid) = if let Some(pid) = file.strip_prefix(&tmp) {
+                (false, pid.to_string())
+            } else if let Some(rest) = file.strip_prefix(&old) {
+                // `.NAME.old` (drape before 0.1 kept no pid) or `.NAME.old-PID`.
+                (true, rest.strip_prefix('-').unwrap_or("0").to_string())
+            } else {
+                return None;
+            };
+            let pid: u32 = pid.parse().ok()?;
+            (pid == 0 || (pid != std::process::id() && !alive(pid))).then(|| (e.path(), is_old))
+        })
+        .collect();
+    stale.sort();
+    for (path, is_old) in stale {
+        let shown = path.display();
+        if is_old && !destination.exists() {
+            if std::fs::rename(&path, destination).is_ok() {
+                notes.push(format!(
+                    "put back the previous bake that an interrupted run had left in {shown}"
+                ));
+            }
+            continue;
+        }
+        if std::fs::remove_dir_all(&path).is_ok() {
+            notes.push(format!(
+                "removed {shown}, left by a run that no longer exists"
+            ));
+        }
+    }
+    notes
 }

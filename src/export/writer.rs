@@ -14,9 +14,17 @@ use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, SyncSender};
 use std::thread::JoinHandle;
 
+/// What the bake hands the writer thread, in frame order.
+enum Message {
+    /// Positions of every garment (export order) on a frame.
+    Frame(u32, Vec<Vec3>),
+    /// The garments' faces from the next frame on (after tearing).
+    Garments(Vec<GarmentRange>),
+}
+
 /// Writes OBJ frames, on its own thread or in line.
 pub struct FrameWriter {
-    frames: Option<SyncSender<(u32, Vec<Vec3>)>>,
+    frames: Option<SyncSender<Message>>,
     thread: Option<JoinHandle<Result<()>>>,
     /// Where to write in line (when no thread was spawned).
     inline: Option<(PathBuf, Vec<GarmentRange>)>,
@@ -47,10 +55,16 @@ impl FrameWriter {
 
     /// Starts a writer of `garments`' frames into `dir`.
     pub fn spawn(dir: PathBuf, garments: Vec<GarmentRange>) -> FrameWriter {
-        let (send, receive) = sync_channel::<(u32, Vec<Vec3>)>(2);
+        let (send, receive) = sync_channel::<Message>(2);
         let thread = std::thread::spawn(move || {
-            for (frame, positions) in receive {
-                write_all(&dir, &garments, frame, &positions)?;
+            let mut garments = garments;
+            for message in receive {
+                match message {
+                    Message::Frame(frame, positions) => {
+                        write_all(&dir, &garments, frame, &positions)?
+                    }
+                    Message::Garments(g) => garments = g,
+                }
             }
             Ok(())
         });
@@ -61,11 +75,26 @@ impl FrameWriter {
         }
     }
 
-    /// Writes later frames with these garments' faces (after tearing). Only an inline writer
-    /// can change them; the GPU backend, which uses the threaded one, does not tear.
-    pub fn set_garments(&mut self, garments: Vec<GarmentRange>) {
+    /// Writes later frames with these garments' faces (after tearing), in line or, queued
+    /// behind the frames already handed over, on the writer thread.
+    pub fn set_garments(&mut self, garments: Vec<GarmentRange>) -> Result<()> {
         if let Some((_, g)) = &mut self.inline {
             *g = garments;
+            return Ok(());
+        }
+        self.send(Message::Garments(garments))
+    }
+
+    /// Hands `message` to the thread; fails with the writer's error if it stopped.
+    fn send(&mut self, message: Message) -> Result<()> {
+        let sent = self
+            .frames
+            .as_ref()
+            .is_some_and(|s| s.send(message).is_ok());
+        if sent {
+            Ok(())
+        } else {
+            self.finish()
         }
     }
 
@@ -75,15 +104,7 @@ impl FrameWriter {
         if let Some((dir, garments)) = &self.inline {
             return write_all(dir, garments, frame, &positions);
         }
-        let sent = self
-            .frames
-            .as_ref()
-            .is_some_and(|s| s.send((frame, positions)).is_ok());
-        if sent {
-            Ok(())
-        } else {
-            self.finish()
-        }
+        self.send(Message::Frame(frame, positions))
     }
 
     /// Waits until every queued frame is written.

@@ -133,8 +133,9 @@ impl Garment {
                 return Garment::voxelized(name, spec, placed);
             }
         };
-        let spacing: Vec<f32> = (0..spec.size.len())
-            .map(|a| spec.size[a] / (spec.resolution[a] - 1) as f32)
+        let size = spec.size();
+        let spacing: Vec<f32> = (0..size.len())
+            .map(|a| size[a] / (spec.resolution[a] - 1) as f32)
             .collect();
         let count = dims.iter().product::<u32>() as usize;
         let rotation = rotation_of(spec.rotation);
@@ -151,10 +152,10 @@ impl Garment {
             };
             // Local frame: grid axis 0 along +X, grid axis 1 along +Z (a horizontal sheet).
             let local = Vec3::new(
-                (u - 0.5) * spec.size[0],
+                (u - 0.5) * size[0],
                 0.0,
                 if dims[1] > 1 {
-                    (v - 0.5) * spec.size[1]
+                    (v - 0.5) * size[1]
                 } else {
                     0.0
                 },
@@ -183,7 +184,7 @@ impl Garment {
             attached: Vec::new(),
         };
         if spec.hole_radius > 0.0 {
-            let size = [spec.size[0], spec.size.get(1).copied().unwrap_or(0.0)];
+            let size = [size[0], size.get(1).copied().unwrap_or(0.0)];
             let keep: Vec<bool> = garment
                 .uvs
                 .iter()
@@ -394,6 +395,28 @@ impl Garment {
     pub fn spring_count(&self, family: SpringFamily) -> usize {
         self.springs.iter().filter(|s| s.family == family).count()
     }
+}
+
+/// Refuses an attachment that selects no particle (a region or cells a hole cut away, a `near`
+/// point away from the cloth): it would attach nothing, silently.
+pub fn check_selections(
+    scene: &crate::scene::Scene,
+    garments: &[Garment],
+    file: &str,
+) -> crate::error::Result<()> {
+    for (i, g) in garments.iter().enumerate() {
+        if let Some(k) = g.attached.iter().position(Vec::is_empty) {
+            return Err(crate::error::Error::InvalidField {
+                file: file.to_string(),
+                field: format!("garments[{i}].attachments[{k}].particles"),
+                reason: format!(
+                    "{:?} selects no particle of garment {:?}",
+                    scene.garments[i].attachments[k].particles, g.name
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Builds every garment of a (validated) scene, in scene order.

@@ -131,11 +131,13 @@ pub struct Voxels {
 impl Voxels {
     /// Lattice dimensions for a mesh spanning `lo…hi` at `spacing` (without voxelizing).
     pub fn dims_for(lo: Vec3, hi: Vec3, spacing: f32) -> [u32; 3] {
-        ((hi - lo) / spacing + 0.5)
+        // In f64 and saturated: a spacing far below the mesh's size asks for more cells than
+        // u32 counts, which must read as "too many", never wrap to a small number.
+        ((hi - lo).as_dvec3() / spacing as f64 + 0.5)
             .floor()
-            .max(Vec3::ZERO)
+            .max(glam::DVec3::ZERO)
             .to_array()
-            .map(|n| n as u32 + 1)
+            .map(|n| n.min((u32::MAX - 1) as f64) as u32 + 1)
     }
 
     /// Voxelizes `vertices`/`triangles` at `spacing`; `fill` fills the inside of a closed mesh.
@@ -347,8 +349,8 @@ pub fn place_scene_meshes(scene: &mut crate::scene::Scene, file: &str) -> Result
             .spacing
             .unwrap_or_else(|| ((phi - plo).max_element() / 31.0).max(1e-4));
         let dims = Voxels::dims_for(plo, phi, spacing);
-        let cells: u64 = dims.iter().map(|&n| n as u64).product();
-        if cells > crate::scene::MAX_PARTICLES {
+        let cells: f64 = dims.iter().map(|&n| n as f64).product();
+        if cells > crate::scene::MAX_PARTICLES as f64 {
             return Err(fail(
                 "spacing",
                 format!(

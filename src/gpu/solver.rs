@@ -14,6 +14,7 @@ use super::layout::{
 use crate::collide::Shape;
 use crate::error::{Error, Result};
 use crate::scene::SolverKind;
+use crate::sim::schedule::Stage;
 use crate::sim::Simulation;
 use glam::{Vec3, Vec4};
 use wgpu::util::DeviceExt;
@@ -626,106 +627,126 @@ impl GpuSimulation {
             });
         encoder.clear_buffer(&self.residual_count, 0, None);
         let integrating = sim.integrating();
-        let (n, springs) = (self.particles, self.springs);
+        let n = self.particles;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("drape frame"),
             timestamp_writes: None,
         });
         pass.set_bind_group(1, &self.group1, &[]);
         pass.set_bind_group(2, &self.group2, &[]);
-        let dispatch = |pass: &mut wgpu::ComputePass,
-                        pipeline: &wgpu::ComputePipeline,
-                        slot: u32,
-                        count: u32,
-                        size: u32| {
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &self.group0, &[(slot as u64 * PARAMS_STRIDE) as u32]);
-            pass.dispatch_workgroups(groups(count, size), 1, 1);
-        };
+        let dispatch =
+            |pass: &mut wgpu::ComputePass,
+             pipeline: &wgpu::ComputePipeline,
+             slot: u32,
+             count: u32,
+             size: u32| self.dispatch(pass, pipeline, slot, count, size);
         let k = &self.kernels;
         if integrating {
             dispatch(&mut pass, &k.predict, PARAMS_NEXT, n, GROUP);
         }
+        // The substep's stages as the CPU runs them (`sim::schedule`).
+        let schedule = sim.schedule();
         for substep in 0..sim.substeps {
-            if self.attached > 0 {
-                dispatch(
-                    &mut pass,
-                    &k.attach,
-                    self.attach_slots + substep,
-                    self.attached,
-                    GROUP,
-                );
-            }
-            for iteration in 0..s.iterations {
-                // A collision pass after each share of the iterations but the last
-                // (Simulation::run_substeps).
-                let passes = s.contact_passes;
-                if iteration > 0 && passes > 1 {
-                    let ends_share = (1..passes).any(|p| s.iterations * p / passes == iteration);
-                    if ends_share {
-                        dispatch(
-                            &mut pass,
-                            &k.contact_pass,
-                            self.finish_slots + substep,
-                            n,
-                            GROUP,
-                        );
-                    }
-                }
-                let sweeps = |pass: &mut wgpu::ComputePass| {
-                    if recording {
-                        dispatch(
-                            pass,
-                            &k.residual_partial,
-                            PARAMS_NEXT,
-                            self.structural,
-                            REDUCE_GROUP,
-                        );
-                        dispatch(pass, &k.residual_total, PARAMS_NEXT, 1, 1);
-                    }
-                };
-                if s.kind == SolverKind::Pbd {
-                    dispatch(&mut pass, &k.pbd, PARAMS_NEXT, n, GROUP);
-                    dispatch(&mut pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
-                    sweeps(&mut pass);
-                    continue;
-                }
-                dispatch(&mut pass, &k.project, PARAMS_NEXT, springs, GROUP);
-                for _ in 0..s.inner_iterations {
-                    if s.kind == SolverKind::Jacobi {
-                        dispatch(&mut pass, &k.jacobi, PARAMS_NEXT, n, GROUP);
-                        dispatch(&mut pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
-                    } else {
-                        for (c, &(start, end)) in self.colour_ranges.iter().enumerate() {
+            for &stage in &schedule {
+                match stage {
+                    Stage::Attach => {
+                        if self.attached > 0 {
                             dispatch(
                                 &mut pass,
-                                &k.sweep,
-                                PARAMS_COLOUR + c as u32,
-                                end - start,
+                                &k.attach,
+                                self.attach_slots + substep,
+                                self.attached,
                                 GROUP,
                             );
                         }
                     }
-                    sweeps(&mut pass);
+                    Stage::Solve { iterations } => {
+                        for _ in 0..iterations {
+                            self.record_iteration(&mut pass, s, recording);
+                        }
+                    }
+                    Stage::ContactPass => dispatch(
+                        &mut pass,
+                        &k.contact_pass,
+                        self.finish_slots + substep,
+                        n,
+                        GROUP,
+                    ),
+                    // Sort q = x + Δ into the grid, then each particle's push (added by
+                    // `finish`).
+                    Stage::ParticleCollisions => {
+                        let table = self
+                            .contact_table
+                            .expect("scheduled with particle collisions");
+                        dispatch(&mut pass, &k.pc_clear, PARAMS_NEXT, table + 1, GROUP);
+                        dispatch(&mut pass, &k.pc_count, PARAMS_NEXT, n, GROUP);
+                        dispatch(&mut pass, &k.pc_scan, PARAMS_NEXT, 1, 1);
+                        dispatch(&mut pass, &k.pc_scatter, PARAMS_NEXT, n, GROUP);
+                        dispatch(&mut pass, &k.pc_order, PARAMS_NEXT, table, GROUP);
+                        dispatch(&mut pass, &k.pc_push_out, PARAMS_NEXT, n, GROUP);
+                    }
+                    Stage::Finish => {
+                        if integrating {
+                            dispatch(&mut pass, &k.finish, self.finish_slots + substep, n, GROUP);
+                        } else {
+                            dispatch(&mut pass, &k.finish_static, PARAMS_NEXT, n, GROUP);
+                        }
+                    }
                 }
-            }
-            // Particle–particle collisions: sort q = x + Δ into the grid, then each particle's
-            // push (added by `finish`).
-            if let Some(table) = self.contact_table {
-                dispatch(&mut pass, &k.pc_clear, PARAMS_NEXT, table + 1, GROUP);
-                dispatch(&mut pass, &k.pc_count, PARAMS_NEXT, n, GROUP);
-                dispatch(&mut pass, &k.pc_scan, PARAMS_NEXT, 1, 1);
-                dispatch(&mut pass, &k.pc_scatter, PARAMS_NEXT, n, GROUP);
-                dispatch(&mut pass, &k.pc_order, PARAMS_NEXT, table, GROUP);
-                dispatch(&mut pass, &k.pc_push_out, PARAMS_NEXT, n, GROUP);
-            }
-            if integrating {
-                dispatch(&mut pass, &k.finish, self.finish_slots + substep, n, GROUP);
-            } else {
-                dispatch(&mut pass, &k.finish_static, PARAMS_NEXT, n, GROUP);
             }
         }
         drop(pass);
         encoder
+    }
+
+    /// One compute dispatch of `count` invocations in groups of `size`, with the parameters at
+    /// `slot` of the uniform buffer.
+    fn dispatch(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        pipeline: &wgpu::ComputePipeline,
+        slot: u32,
+        count: u32,
+        size: u32,
+    ) {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.group0, &[(slot as u64 * PARAMS_STRIDE) as u32]);
+        pass.dispatch_workgroups(groups(count, size), 1, 1);
+    }
+
+    /// One solver iteration (`Solver::iterate`): a PBD iteration, or the local step and the
+    /// inner sweeps of the global step; with `recording`, the residual after each sweep.
+    fn record_iteration(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        s: &crate::scene::SolverSettings,
+        recording: bool,
+    ) {
+        let (k, n) = (&self.kernels, self.particles);
+        let residual = |pass: &mut wgpu::ComputePass| {
+            if recording {
+                let partial = &k.residual_partial;
+                self.dispatch(pass, partial, PARAMS_NEXT, self.structural, REDUCE_GROUP);
+                self.dispatch(pass, &k.residual_total, PARAMS_NEXT, 1, 1);
+            }
+        };
+        if s.kind == SolverKind::Pbd {
+            self.dispatch(pass, &k.pbd, PARAMS_NEXT, n, GROUP);
+            self.dispatch(pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
+            residual(pass);
+            return;
+        }
+        self.dispatch(pass, &k.project, PARAMS_NEXT, self.springs, GROUP);
+        for _ in 0..s.inner_iterations {
+            if s.kind == SolverKind::Jacobi {
+                self.dispatch(pass, &k.jacobi, PARAMS_NEXT, n, GROUP);
+                self.dispatch(pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
+            } else {
+                for (c, &(start, end)) in self.colour_ranges.iter().enumerate() {
+                    self.dispatch(pass, &k.sweep, PARAMS_COLOUR + c as u32, end - start, GROUP);
+                }
+            }
+            residual(pass);
+        }
     }
 }

@@ -28,6 +28,10 @@ pub struct Report {
     pub frames_requested: u32,
     pub frames_baked: u32,
     pub ms_per_frame: Timing,
+    /// Wall time per stage ([`crate::sim::schedule::TIMED`]): the simulation's stages on the
+    /// CPU backend (the GPU runs them in one command buffer, untimed), and what runs around them
+    /// on both.
+    pub stages_ms: Vec<StageTiming>,
     /// Metrics after the last baked frame.
     pub last_frame: Option<FrameMetrics>,
     /// The frame with the largest structural strain.
@@ -54,6 +58,31 @@ pub struct Report {
     pub exports: Vec<ExportReport>,
     /// The preview render, if one was made.
     pub preview: Option<crate::render::RenderSummary>,
+}
+
+/// One stage's wall time over the bake.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct StageTiming {
+    pub stage: &'static str,
+    /// Over the whole bake [ms].
+    pub total: f64,
+    /// Mean per baked frame [ms].
+    pub per_frame: f64,
+}
+
+impl StageTiming {
+    /// The stages of `times` over `frames` frames, in [`crate::sim::schedule::TIMED`] order.
+    pub fn of(times: &crate::sim::schedule::StageTimes, frames: u32) -> Vec<StageTiming> {
+        crate::sim::schedule::TIMED
+            .iter()
+            .zip(times.seconds)
+            .map(|(&stage, s)| StageTiming {
+                stage,
+                total: s * 1e3,
+                per_frame: s * 1e3 / frames.max(1) as f64,
+            })
+            .collect()
+    }
 }
 
 /// Where the simulation ran.

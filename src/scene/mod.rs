@@ -5,9 +5,9 @@
 //! typo never silently falls back to a default. Parsing reports file, line, column and the JSON path
 //! of the field; [`validate`] then rejects impossible values, naming the field and the reason.
 
-mod validate;
+pub(crate) mod validate;
 
-pub use validate::{validate, MAX_PARTICLES};
+pub use validate::{bad_name, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_PARTICLES};
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -212,8 +212,10 @@ pub struct GarmentSpec {
     pub kind: GarmentKind,
     /// Particles along each grid axis: [nu, nv] for a sheet, [n] for a rope. Default [32, 32].
     pub resolution: Vec<u32>,
-    /// Rest size [m] along each grid axis, same length as `resolution`. Default [1, 1].
-    pub size: Vec<f32>,
+    /// Rest size [m] along each grid axis, same length as `resolution`. Default 1 m per axis
+    /// ([1, 1] for a sheet, [1] for a rope); read it with [`GarmentSpec::size`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub size: Option<Vec<f32>>,
     /// Total mass [kg], spread evenly over the particles. Default 0.1.
     pub mass: f32,
     /// Centre of the garment [m]. Default [0, 1, 0].
@@ -265,7 +267,7 @@ impl Default for GarmentSpec {
             name: None,
             kind: GarmentKind::Sheet,
             resolution: vec![32, 32],
-            size: vec![1.0, 1.0],
+            size: None,
             mass: 0.1,
             position: [0.0, 1.0, 0.0],
             rotation: [0.0; 3],
@@ -284,6 +286,16 @@ impl Default for GarmentSpec {
             fill: FillMode::Auto,
             placed: None,
         }
+    }
+}
+
+impl GarmentSpec {
+    /// Rest size [m] along each grid axis: the given one, or 1 m along each of the kind's axes.
+    pub fn size(&self) -> Vec<f32> {
+        self.size.clone().unwrap_or_else(|| match self.kind {
+            GarmentKind::Rope => vec![1.0],
+            GarmentKind::Sheet | GarmentKind::Mesh => vec![1.0, 1.0],
+        })
     }
 }
 
@@ -602,10 +614,18 @@ impl Scene {
     }
 
     fn parse_only(text: &str, file: &str) -> Result<Scene> {
+        // A byte order mark is how some editors start UTF-8 files; it is not JSON.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut de = serde_json::Deserializer::from_str(text);
         let scene: Scene = serde_path_to_error::deserialize(&mut de).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
+            let mut reason = strip_position(&inner.to_string());
+            if reason == "expected value" {
+                if let Some(choices) = enum_choices(text, &path) {
+                    reason = format!("expected {choices}");
+                }
+            }
             Error::SceneSyntax {
                 file: file.to_string(),
                 line: inner.line(),
@@ -615,16 +635,11 @@ impl Scene {
                 } else {
                     path
                 },
-                reason: strip_position(&inner.to_string()),
+                reason,
             }
         })?;
-        de.end().map_err(|e| Error::SceneSyntax {
-            file: file.to_string(),
-            line: e.line(),
-            column: e.column(),
-            path: "(top level)".into(),
-            reason: strip_position(&e.to_string()),
-        })?;
+        de.end().map_err(|e| top_level_syntax(file, &e))?;
+        check_shapes(text, &scene, file)?;
         validate(&scene, file)?;
         Ok(scene)
     }
@@ -649,6 +664,84 @@ impl Scene {
             .name
             .clone()
             .unwrap_or_else(|| format!("garment{index}"))
+    }
+}
+
+/// serde_json says only "expected value" when a named choice (`"solver": {"kind": 3}`) is not a
+/// string. Asks the schema for the choices instead: the same text with an empty string at `path`
+/// fails with "unknown variant ``, expected one of `gs`, …"; returns "one of `gs`, …".
+fn enum_choices(text: &str, path: &str) -> Option<String> {
+    let mut value: serde_json::Value = serde_json::from_str(text).ok()?;
+    // serde_path_to_error's `garments[0].kind` as a JSON pointer `/garments/0/kind`.
+    let pointer: String = path
+        .replace('[', ".")
+        .replace(']', "")
+        .split('.')
+        .filter(|p| !p.is_empty())
+        .map(|p| format!("/{p}"))
+        .collect();
+    *value.pointer_mut(&pointer)? = serde_json::Value::String(String::new());
+    let message = serde_json::from_value::<Scene>(value).err()?.to_string();
+    let at = message.find("expected one of ")?;
+    Some(message[at + "expected ".len()..].to_string())
+}
+
+/// serde accepts a JSON array wherever a struct is expected (`"solver": ["jacobi", 3]` would be
+/// read field by field in declaration order, `[]` as all defaults). A scene is written with
+/// objects: compare the text's shape with the parsed scene written back, and refuse an array where
+/// the scene has an object.
+fn check_shapes(text: &str, scene: &Scene, file: &str) -> Result<()> {
+    use serde_json::Value;
+    fn walk(given: &Value, parsed: &Value, path: &mut String) -> Option<String> {
+        match (given, parsed) {
+            (Value::Array(_), Value::Object(_)) => Some(path.clone()),
+            (Value::Object(a), Value::Object(b)) => a.iter().find_map(|(key, v)| {
+                let w = b.get(key)?;
+                let len = path.len();
+                if !path.is_empty() {
+                    path.push('.');
+                }
+                path.push_str(key);
+                let found = walk(v, w, path);
+                path.truncate(len);
+                found
+            }),
+            (Value::Array(a), Value::Array(b)) => {
+                a.iter().zip(b).enumerate().find_map(|(i, (v, w))| {
+                    let len = path.len();
+                    path.push_str(&format!("[{i}]"));
+                    let found = walk(v, w, path);
+                    path.truncate(len);
+                    found
+                })
+            }
+            _ => None,
+        }
+    }
+    let given: Value = serde_json::from_str(text).map_err(|e| top_level_syntax(file, &e))?;
+    let parsed = serde_json::to_value(scene).expect("scenes serialise");
+    match walk(&given, &parsed, &mut String::new()) {
+        Some(path) => Err(Error::InvalidField {
+            file: file.to_string(),
+            field: if path.is_empty() {
+                "(top level)".into()
+            } else {
+                path
+            },
+            reason: "expected an object ({ \"field\": value, … }), got an array".into(),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// A JSON syntax error outside any field (trailing characters, nesting too deep).
+fn top_level_syntax(file: &str, e: &serde_json::Error) -> Error {
+    Error::SceneSyntax {
+        file: file.to_string(),
+        line: e.line(),
+        column: e.column(),
+        path: "(top level)".into(),
+        reason: strip_position(&e.to_string()),
     }
 }
 

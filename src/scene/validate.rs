@@ -7,6 +7,53 @@ use crate::error::{Error, Result};
 /// such as a resolution of 100000 asking for all the machine's memory.
 pub const MAX_PARTICLES: u64 = 50_000_000;
 
+/// The most frames one bake may ask for (over 4 hours at 60 fps): a typo such as 4294967295
+/// must be refused before anything is allocated for it.
+pub const MAX_FRAMES: u32 = 1_000_000;
+
+/// The most substeps per frame (from `substeps` or `timestep`).
+pub const MAX_SUBSTEPS: u32 = 100_000;
+
+/// The most outer solver iterations per substep.
+pub const MAX_ITERATIONS: u32 = 100_000;
+
+/// The most inner iterations per outer iteration.
+pub const MAX_INNER_ITERATIONS: u32 = 1_000;
+
+/// The most particle-iterations a whole bake may ask for (frames × substeps × iterations ×
+/// inner iterations × particles): at the 25 ns per particle-iteration measured on a 2-core
+/// machine, 10¹⁵ is about a year. A bake that cannot finish is refused up front.
+pub const MAX_WORK: f64 = 1e15;
+
+/// The most analytic colliders in one scene (each costs memory for its exported mesh and a test
+/// per particle per substep).
+pub const MAX_COLLIDERS: usize = 1_000;
+
+/// The longest name (scene, garment, character) in bytes: names become file names.
+pub const MAX_NAME_BYTES: usize = 100;
+
+/// Why `name` cannot name output files, or None when it can: not empty, at most
+/// [`MAX_NAME_BYTES`] bytes, no path separator or control character, not hidden.
+pub fn bad_name(name: &str) -> Option<String> {
+    let reason = if name.is_empty() {
+        "is empty"
+    } else if name.len() > MAX_NAME_BYTES {
+        return Some(format!(
+            "is {} bytes long; a name becomes a file name and may have at most {MAX_NAME_BYTES}",
+            name.len()
+        ));
+    } else if name.contains(['/', '\\']) {
+        "contains a path separator (a name is a file name, never a path)"
+    } else if name.chars().any(char::is_control) {
+        "contains a control character"
+    } else if name.starts_with('.') {
+        "starts with a dot (hidden file, or . and ..)"
+    } else {
+        return None;
+    };
+    Some(format!("{name:?} cannot name output files: it {reason}"))
+}
+
 /// Checks every value of a parsed scene; `file` names the source in the error.
 pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     let fail = |field: String, reason: String| Error::InvalidField {
@@ -14,9 +61,66 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
         field,
         reason,
     };
+    let lift = |(field, reason): Failure| fail(field, reason);
+    check_timing(scene).map_err(lift)?;
+    let particles = check_garments(scene).map_err(lift)?;
+    check_work(scene, particles).map_err(lift)?;
+    check_characters(scene).map_err(lift)?;
+    for (i, g) in scene.garments.iter().enumerate() {
+        for a in &g.attachments {
+            if let Some(name) = &a.character {
+                let known = scene.characters.iter().enumerate().any(|(k, c)| {
+                    c.name.clone().unwrap_or_else(|| format!("character{k}")) == *name
+                });
+                if !known {
+                    return Err(fail(
+                        format!("garments[{i}].attachments"),
+                        format!("no character named {name:?} in this scene"),
+                    ));
+                }
+            }
+        }
+    }
+    if scene.colliders.len() > MAX_COLLIDERS {
+        return Err(fail(
+            "colliders".into(),
+            format!(
+                "{} colliders is more than drape's limit of {MAX_COLLIDERS}",
+                scene.colliders.len()
+            ),
+        ));
+    }
+    for (i, c) in scene.colliders.iter().enumerate() {
+        validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
+    }
+    if let Some(r) = scene.particle_radius {
+        positive(r).map_err(|r| fail("particle_radius".into(), r))?;
+    }
+    let [w, h] = scene.output.preview_size;
+    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
+        return Err(fail(
+            "output.preview_size".into(),
+            format!("{w}×{h} is outside 1…8192 pixels per side"),
+        ));
+    }
+    Ok(())
+}
+
+/// A field that failed and why.
+type Failure = (String, String);
+
+/// The name, the clock (fps, frames, substeps or timestep), gravity, damping and the solver.
+fn check_timing(scene: &Scene) -> std::result::Result<(), Failure> {
+    let fail = |field: String, reason: String| (field, reason);
+    if let Some(reason) = bad_name(&scene.name) {
+        return Err(fail("name".into(), reason));
+    }
     positive(scene.fps).map_err(|r| fail("fps".into(), r))?;
-    if scene.frames == 0 {
-        return Err(fail("frames".into(), "must be at least 1".into()));
+    if scene.frames == 0 || scene.frames > MAX_FRAMES {
+        return Err(fail(
+            "frames".into(),
+            format!("must lie between 1 and {MAX_FRAMES} (got {})", scene.frames),
+        ));
     }
     match (scene.substeps, scene.timestep) {
         (Some(_), Some(_)) => {
@@ -25,24 +129,45 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
                 "give either substeps or timestep, not both".into(),
             ))
         }
-        (Some(0), None) => return Err(fail("substeps".into(), "must be at least 1".into())),
-        (None, Some(dt)) => positive(dt).map_err(|r| fail("timestep".into(), r))?,
+        (Some(n), None) if n == 0 || n > MAX_SUBSTEPS => {
+            return Err(fail(
+                "substeps".into(),
+                format!("must lie between 1 and {MAX_SUBSTEPS} per frame (got {n})"),
+            ))
+        }
+        (None, Some(dt)) => {
+            positive(dt).map_err(|r| fail("timestep".into(), r))?;
+            let per_frame = 1.0 / (scene.fps as f64 * dt as f64);
+            if per_frame > MAX_SUBSTEPS as f64 {
+                return Err(fail(
+                    "timestep".into(),
+                    format!(
+                        "{dt:e} s at {} fps is {per_frame:.3e} substeps per frame, more than the \
+                         {MAX_SUBSTEPS} a bake can run",
+                        scene.fps
+                    ),
+                ));
+            }
+        }
         _ => {}
     }
     finite3(scene.gravity).map_err(|r| fail("gravity".into(), r))?;
     non_negative(scene.damping).map_err(|r| fail("damping".into(), r))?;
     let solver = &scene.solver;
-    if solver.iterations == 0 {
-        return Err(fail(
-            "solver.iterations".into(),
-            "must be at least 1".into(),
-        ));
-    }
-    if solver.inner_iterations == 0 {
-        return Err(fail(
-            "solver.inner_iterations".into(),
-            "must be at least 1".into(),
-        ));
+    for (field, n, most) in [
+        ("solver.iterations", solver.iterations, MAX_ITERATIONS),
+        (
+            "solver.inner_iterations",
+            solver.inner_iterations,
+            MAX_INNER_ITERATIONS,
+        ),
+    ] {
+        if n == 0 || n > most {
+            return Err(fail(
+                field.into(),
+                format!("must lie between 1 and {most} (got {n})"),
+            ));
+        }
     }
     if solver.contact_passes == 0 || solver.contact_passes > solver.iterations {
         return Err(fail(
@@ -63,6 +188,12 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
             ),
         ));
     }
+    Ok(())
+}
+
+/// Every garment, and their names; returns the particles of the sheets and ropes.
+fn check_garments(scene: &Scene) -> std::result::Result<u64, Failure> {
+    let fail = |field: String, reason: String| (field, reason);
     if scene.garments.is_empty() {
         return Err(fail(
             "garments".into(),
@@ -73,13 +204,10 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     let mut particles = 0u64;
     for (i, g) in scene.garments.iter().enumerate() {
         let at = |f: &str| format!("garments[{i}].{f}");
-        particles += validate_garment(g).map_err(|(f, r)| fail(at(f), r))?;
+        particles = particles.saturating_add(validate_garment(g).map_err(|(f, r)| fail(at(f), r))?);
         let name = scene.garment_name(i);
-        if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
-            return Err(fail(
-                at("name"),
-                format!("{name:?} cannot name output files (empty, a path, or hidden)"),
-            ));
+        if let Some(reason) = bad_name(&name) {
+            return Err(fail(at("name"), reason));
         }
         if !names.insert(name.clone()) {
             return Err(fail(
@@ -94,6 +222,43 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
             format!("{particles} particles in all is more than drape's limit of {MAX_PARTICLES}"),
         ));
     }
+    Ok(particles)
+}
+
+/// The whole bake's work: refused when it could not finish.
+fn check_work(scene: &Scene, particles: u64) -> std::result::Result<(), Failure> {
+    let fail = |field: String, reason: String| (field, reason);
+    let solver = &scene.solver;
+    let work = scene.frames as f64
+        * scene.substeps_per_frame() as f64
+        * solver.iterations as f64
+        * solver.inner_iterations as f64
+        * particles.max(1) as f64;
+    if work > MAX_WORK {
+        let field = match scene.timestep {
+            Some(_) => "timestep",
+            None => "substeps",
+        };
+        return Err(fail(
+            field.into(),
+            format!(
+                "{} frames × {} substeps × {} × {} iterations × {particles} particles is \
+                 {work:.2e} particle-iterations, more than drape's limit of {MAX_WORK:.0e} \
+                 (about a year on a 2-core machine): the bake could not finish",
+                scene.frames,
+                scene.substeps_per_frame(),
+                solver.iterations,
+                solver.inner_iterations
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Every character: file, a unique name, import options, shell radius and friction.
+fn check_characters(scene: &Scene) -> std::result::Result<(), Failure> {
+    let fail = |field: String, reason: String| (field, reason);
+    let mut character_names = std::collections::HashSet::new();
     for (i, c) in scene.characters.iter().enumerate() {
         let at = |f: &str| format!("characters[{i}].{f}");
         if c.file.is_empty() {
@@ -102,46 +267,21 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
                 "a character needs a file, folder or %04d pattern".into(),
             ));
         }
-        positive(c.scale).map_err(|r| fail(at("scale"), r))?;
-        positive(c.speed).map_err(|r| fail(at("speed"), r))?;
-        positive(c.radius).map_err(|r| fail(at("radius"), r))?;
+        let name = c.name.clone().unwrap_or_else(|| format!("character{i}"));
+        if let Some(reason) = bad_name(&name) {
+            return Err(fail(at("name"), reason));
+        }
+        if !character_names.insert(name.clone()) {
+            return Err(fail(
+                at("name"),
+                format!("{name:?} is used by two characters (attachments name characters)"),
+            ));
+        }
+        c.options()
+            .check()
+            .map_err(|(field, r)| fail(at(field), r))?;
+        length(c.radius).map_err(|r| fail(at("radius"), r))?;
         non_negative(c.friction).map_err(|r| fail(at("friction"), r))?;
-        if let Some(f) = c.sequence_fps {
-            positive(f).map_err(|r| fail(at("sequence_fps"), r))?;
-        }
-        finite3(c.position).map_err(|r| fail(at("position"), r))?;
-        finite3(c.rotation).map_err(|r| fail(at("rotation"), r))?;
-        if !c.time_offset.is_finite() {
-            return Err(fail(at("time_offset"), "must be finite".into()));
-        }
-    }
-    for (i, g) in scene.garments.iter().enumerate() {
-        for a in &g.attachments {
-            if let Some(name) = &a.character {
-                let known = scene.characters.iter().enumerate().any(|(k, c)| {
-                    c.name.clone().unwrap_or_else(|| format!("character{k}")) == *name
-                });
-                if !known {
-                    return Err(fail(
-                        format!("garments[{i}].attachments"),
-                        format!("no character named {name:?} in this scene"),
-                    ));
-                }
-            }
-        }
-    }
-    for (i, c) in scene.colliders.iter().enumerate() {
-        validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
-    }
-    if let Some(r) = scene.particle_radius {
-        positive(r).map_err(|r| fail("particle_radius".into(), r))?;
-    }
-    let [w, h] = scene.output.preview_size;
-    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
-        return Err(fail(
-            "output.preview_size".into(),
-            format!("{w}×{h} is outside 1…8192 pixels per side"),
-        ));
     }
     Ok(())
 }
@@ -176,14 +316,15 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
             format!("needs at least 2 particles per axis, got {n}"),
         ));
     }
-    if g.size.len() != axes {
+    let size = g.size();
+    if size.len() != axes {
         return Err((
             "size",
-            format!("a {kind} needs {axes} values, got {}", g.size.len()),
+            format!("a {kind} needs {axes} values, got {}", size.len()),
         ));
     }
-    for &s in &g.size {
-        positive(s).map_err(|r| ("size", r))?;
+    for &s in &size {
+        length(s).map_err(|r| ("size", r))?;
     }
     if g.hole_radius > 0.0 {
         if g.kind != GarmentKind::Sheet {
@@ -192,13 +333,13 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
                 format!("only sheets have holes, not a {kind}"),
             ));
         }
-        let half = 0.5 * g.size[0].min(g.size[1]);
+        let half = 0.5 * size[0].min(size[1]);
         if g.hole_radius >= half {
             return Err((
                 "hole_radius",
                 format!(
                     "{} m leaves no cloth in a {:?} m sheet",
-                    g.hole_radius, g.size
+                    g.hole_radius, size
                 ),
             ));
         }
@@ -238,7 +379,7 @@ fn validate_mesh_garment(g: &GarmentSpec) -> std::result::Result<(), (&'static s
         return Err(("mesh", "a mesh garment needs a mesh file".into()));
     }
     if let Some(s) = g.spacing {
-        positive(s).map_err(|r| ("spacing", r))?;
+        length(s).map_err(|r| ("spacing", r))?;
     }
     positive(g.scale).map_err(|r| ("scale", r))?;
     check_common(g)?;
@@ -271,7 +412,7 @@ fn check_attachments(
             }
             ParticleSelection::Near(n) => {
                 finite3(n.near).map_err(|r| ("attachments", format!("near: {r}")))?;
-                positive(n.radius).map_err(|r| ("attachments", format!("radius: {r}")))?;
+                length(n.radius).map_err(|r| ("attachments", format!("radius: {r}")))?;
             }
             ParticleSelection::Cells(_) => {}
         }
@@ -285,6 +426,9 @@ fn check_attachments(
             _ => {}
         }
         check_keyframes(&a.keyframes, "attachments")?;
+        if let Some(p) = a.pivot {
+            finite3(p).map_err(|r| ("attachments", format!("pivot: {r}")))?;
+        }
     }
     Ok(())
 }
@@ -307,6 +451,7 @@ fn check_keyframes(
                 format!("keyframe {k}: times must be finite, at least 0 and increasing"),
             ));
         }
+        finite3(key.translation).map_err(|r| (field, format!("keyframe {k}: translation {r}")))?;
     }
     Ok(())
 }
@@ -375,7 +520,7 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
         let r = c
             .radius
             .ok_or(("radius", format!("{name} needs a radius")))?;
-        positive(r).map_err(|r| ("radius", r))
+        length(r).map_err(|r| ("radius", r))
     };
     if let Some(r) = c.rotation {
         finite3(r).map_err(|r| ("rotation", r))?;
@@ -408,10 +553,10 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
             radius()?;
             for (field, v) in [("top_radius", c.top_radius), ("height", c.height)] {
                 let v = v.ok_or((field, format!("{name} needs {field}")))?;
-                positive(v).map_err(|r| (field, r))?;
+                length(v).map_err(|r| (field, r))?;
             }
             if let Some(t) = c.thickness {
-                positive(t).map_err(|r| ("thickness", r))?;
+                length(t).map_err(|r| ("thickness", r))?;
             }
         }
         ColliderKind::Box | ColliderKind::Wedge => {
@@ -423,6 +568,9 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
                     format!("{size:?}: every edge must be longer than 0"),
                 ));
             }
+            for &e in &size {
+                length(e).map_err(|r| ("size", r))?;
+            }
         }
         ColliderKind::Capsule => {
             need(c.start, "start")?;
@@ -433,7 +581,7 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
     Ok(())
 }
 
-fn positive(v: f32) -> std::result::Result<(), String> {
+pub(crate) fn positive(v: f32) -> std::result::Result<(), String> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
@@ -449,10 +597,29 @@ fn non_negative(v: f32) -> std::result::Result<(), String> {
     }
 }
 
-fn finite3(v: [f32; 3]) -> std::result::Result<(), String> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(())
-    } else {
+/// The largest coordinate or length [m] a scene may hold: single-precision positions resolve
+/// 100 km to 8 mm, and nothing a cloth bake models is larger.
+pub const MAX_EXTENT: f32 = 1e5;
+
+pub(crate) fn finite3(v: [f32; 3]) -> std::result::Result<(), String> {
+    if !v.iter().all(|x| x.is_finite()) {
         Err(format!("must be finite (got {v:?})"))
+    } else if v.iter().any(|x| x.abs() > MAX_EXTENT) {
+        Err(format!(
+            "{v:?} lies beyond ±{MAX_EXTENT:.0e}, where single precision cannot resolve a cloth"
+        ))
+    } else {
+        Ok(())
     }
+}
+
+/// A length [m]: above zero and at most [`MAX_EXTENT`].
+fn length(v: f32) -> std::result::Result<(), String> {
+    positive(v)?;
+    if v > MAX_EXTENT {
+        return Err(format!(
+            "{v} m is beyond {MAX_EXTENT:.0e} m, where single precision cannot resolve a cloth"
+        ));
+    }
+    Ok(())
 }

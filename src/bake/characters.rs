@@ -1,0 +1,134 @@
+//! The scene's characters for a bake: each one imported at the scene's frame rate, its collision
+//! shell sampled (or read from the shell cache when its inputs have not changed), and its mesh
+//! kept for the exports and for attachments to its skin.
+
+use crate::character::{cache::input_hash, sequence_files, Character, ShellCache};
+use crate::collide::ShellCollider;
+use crate::error::{Error, Result};
+use crate::export::gltf::AnimatedMesh;
+use crate::export::sequence::CHARACTER_COLOUR;
+use crate::report::CharacterReport;
+use crate::scene::Scene;
+use std::path::{Path, PathBuf};
+
+/// drape's cache folder (shell caches, and the mannequin files of the embedded default scene):
+/// `$XDG_CACHE_HOME/drape`, else `~/.cache/drape`, else the temp folder.
+pub fn shell_cache_dir() -> PathBuf {
+    std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+        .unwrap_or_else(std::env::temp_dir)
+        .join("drape")
+}
+
+/// Loads the scene's characters and their collision shells over the bake's frames, reusing a
+/// shell cache whose inputs have not changed.
+pub fn load_characters(
+    scene: &Scene,
+    cache_dir: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<LoadedCharacter>> {
+    let mut out = Vec::new();
+    for (i, spec) in scene.characters.iter().enumerate() {
+        let path = scene.character_path(i);
+        let options = spec.options();
+        let frames = scene.frames as usize + 1;
+        let character = Character::load(&path, &options, scene.fps, frames)?;
+        let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
+        warnings.extend(character.size_warning(spec.scale));
+        character
+            .check_shell(spec.radius)
+            .map_err(|reason| Error::InvalidField {
+                file: path.display().to_string(),
+                field: format!("characters[{i}].radius"),
+                reason,
+            })?;
+        // Normals ride the skin with the shell, when one shell serves every frame.
+        let mut normals = Vec::new();
+        let (positions, cache) = if character.same_topology() {
+            let files = sequence_files(&path)?;
+            let hash = input_hash(
+                &files,
+                &options,
+                spec.radius,
+                scene.fps,
+                character.frames.len(),
+            )?;
+            let file = cache_dir.join(format!("{hash:016x}.shell"));
+            let triangles = character.triangles_of(0).len();
+            let (c, how) = match ShellCache::read(&file) {
+                Ok(c) if c.inputs == hash && c.fits(triangles) => (c, "reused"),
+                found => {
+                    if let Err(e @ Error::InvalidField { .. }) = &found {
+                        warnings.push(format!("character {name}: {e}; rebuilt it"));
+                    }
+                    let c = ShellCache::build(&character, spec.radius, hash)?;
+                    let written = std::fs::create_dir_all(cache_dir)
+                        .map_err(|e| Error::io(cache_dir, "cannot create", e))
+                        .and_then(|_| c.write(&file));
+                    if let Err(e) = written {
+                        warnings.push(format!("character {name}: shell cache not written: {e}"));
+                    }
+                    (c, "built")
+                }
+            };
+            let triangles = character.triangles_of(0);
+            normals = character
+                .frames
+                .iter()
+                .map(|f| c.shell.normals(f, triangles))
+                .collect();
+            (c.frames, how)
+        } else {
+            (
+                character.shell_frames(spec.radius),
+                "none (topology changes)",
+            )
+        };
+        let report = CharacterReport {
+            name: name.clone(),
+            file: path.display().to_string(),
+            frames: positions.len(),
+            shell_particles: positions.first().map_or(0, Vec::len),
+            shell_radius: spec.radius,
+            shell_cache: cache,
+        };
+        // Exports and previews show the character when its topology holds over the frames.
+        let mesh = if character.same_topology() {
+            Some(AnimatedMesh {
+                name: name.clone(),
+                triangles: character.triangles_of(0).to_vec(),
+                uvs: None,
+                colour: [
+                    CHARACTER_COLOUR[0],
+                    CHARACTER_COLOUR[1],
+                    CHARACTER_COLOUR[2],
+                    1.0,
+                ],
+                frames: character.frames.clone(),
+                topology: Vec::new(),
+            })
+        } else {
+            warnings.push(format!(
+                "character {name}: its topology changes between frames, so exports and previews leave it out"
+            ));
+            None
+        };
+        let mut shell = ShellCollider::new(name, spec.radius, spec.friction, positions);
+        shell.normals = normals;
+        out.push(LoadedCharacter {
+            shell,
+            report,
+            mesh,
+        });
+    }
+    Ok(out)
+}
+
+/// A character ready for a bake: its collision shell, what the report says of it, and its mesh
+/// over frames 0…N for the exports (None when its topology changes between frames).
+pub struct LoadedCharacter {
+    pub shell: ShellCollider,
+    pub report: CharacterReport,
+    pub mesh: Option<AnimatedMesh>,
+}

@@ -1,0 +1,58 @@
+//! A scene and its loaded characters made into a complete simulation: the one place that wires
+//! garments, colliders, characters' shells (swept as the scene says) and attachments to skins
+//! together, for the bake and for the tests alike.
+
+use super::characters::LoadedCharacter;
+use crate::error::{Error, Result};
+use crate::export::gltf::AnimatedMesh;
+use crate::report::CharacterReport;
+use crate::scene::Scene;
+use crate::sim::attach::Skin;
+use crate::sim::Simulation;
+
+/// A simulation ready to step, with what the bake reports and exports of its characters.
+pub struct Prepared {
+    pub sim: Simulation,
+    /// What the report says of each character.
+    pub characters: Vec<CharacterReport>,
+    /// The characters' meshes over frames 0…N (those whose topology holds), for the exports.
+    pub character_meshes: Vec<AnimatedMesh>,
+}
+
+/// Builds the complete simulation of a (validated) scene with its loaded characters; `file`
+/// names the scene in errors (an attachment that selects nothing, a skin that is not there).
+pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -> Result<Prepared> {
+    let garments = crate::garment::build_all(scene);
+    crate::garment::check_selections(scene, &garments, file)?;
+    let mut sim = Simulation::from_garments(scene, &garments, scene.solver.clone());
+    let mut reports = Vec::new();
+    let mut character_meshes = Vec::new();
+    for mut c in characters {
+        c.shell.swept = scene.swept_collisions;
+        sim.shells.push(c.shell);
+        reports.push(c.report);
+        character_meshes.extend(c.mesh);
+    }
+    if !sim.attachments.unbound().is_empty() {
+        let skins = character_meshes
+            .iter()
+            .map(|m| Skin {
+                name: m.name.clone(),
+                triangles: m.triangles.clone(),
+                frames: m.frames.clone(),
+            })
+            .collect();
+        sim.attachments
+            .bind_skins(skins)
+            .map_err(|reason| Error::InvalidField {
+                file: file.to_string(),
+                field: "garments[].attachments".into(),
+                reason,
+            })?;
+    }
+    Ok(Prepared {
+        sim,
+        characters: reports,
+        character_meshes,
+    })
+}

@@ -1,0 +1,97 @@
+//! The report a bake starts from and the per-frame metrics it fills in.
+
+use super::BakeOptions;
+use crate::collide;
+use crate::report::{
+    Backend, ColliderPenetration, FrameMetrics, GarmentReport, Outputs, Report, Timing, SCHEMA,
+};
+use crate::scene::Scene;
+use crate::sim::{metrics, Simulation};
+
+pub(super) fn empty_report(
+    scene: &Scene,
+    options: &BakeOptions,
+    sim: &Simulation,
+    threads: usize,
+) -> Report {
+    let model = sim.model();
+    Report {
+        schema: SCHEMA,
+        drape_version: env!("CARGO_PKG_VERSION"),
+        scene: scene.name.clone(),
+        scene_file: options.scene_file.clone(),
+        backend: Backend {
+            kind: "cpu",
+            threads,
+            adapter: None,
+        },
+        solver: scene.solver.clone(),
+        integrator: scene.integrator,
+        fps: scene.fps,
+        substeps: sim.substeps,
+        step_seconds: sim.step,
+        particles: model.particle_count(),
+        springs: model.springs.len(),
+        garments: model
+            .garments
+            .iter()
+            .map(|g| GarmentReport {
+                name: g.name.clone(),
+                particles: g.export.len(),
+                pinned: g
+                    .export
+                    .clone()
+                    .filter(|&e| model.inv_mass[model.storage_of[e] as usize] == 0.0)
+                    .count(),
+                stretch_springs: g.stretch_springs,
+                shear_springs: g.shear_springs,
+                bend_springs: g.bend_springs,
+                colours: g.colours,
+            })
+            .collect(),
+        frames_requested: scene.frames,
+        frames_baked: 0,
+        ms_per_frame: Timing::default(),
+        stages_ms: Vec::new(),
+        last_frame: None,
+        worst_frame: None,
+        worst_penetrations: Vec::new(),
+        penetrations_per_frame: Vec::new(),
+        torn_springs: 0,
+        stable: true,
+        failure: None,
+        warnings: Vec::new(),
+        characters: Vec::new(),
+        residuals: None,
+        outputs: Outputs {
+            obj: scene.output.obj.then(|| "obj".to_string()),
+            ..Outputs::default()
+        },
+        exports: Vec::new(),
+        preview: None,
+    }
+}
+
+pub(super) fn frame_metrics(
+    frame: u32,
+    e: &metrics::ConstraintError,
+    p: &[collide::Penetration],
+) -> FrameMetrics {
+    FrameMetrics {
+        frame,
+        total_squared_error: e.total_squared_error,
+        mean_strain: e.mean_strain,
+        max_strain: e.max_strain,
+        penetrations: collider_penetrations(p),
+    }
+}
+
+pub(super) fn collider_penetrations(p: &[collide::Penetration]) -> Vec<ColliderPenetration> {
+    p.iter()
+        .enumerate()
+        .map(|(collider, &penetration)| ColliderPenetration {
+            collider,
+            penetration,
+        })
+        .collect()
+}

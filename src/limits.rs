@@ -1,0 +1,40 @@
+//! How much a run may ask of the machine: requests are estimated before anything is allocated
+//! for them and refused with a reason (exit 2) instead of aborting on a failed allocation.
+
+/// Physical memory of this machine in bytes (`None` where it cannot be read).
+pub fn physical_memory() -> Option<u64> {
+    #[cfg(unix)]
+    {
+        // SAFETY: sysconf reads system constants; no memory is touched.
+        let (pages, size) = unsafe {
+            (
+                libc::sysconf(libc::_SC_PHYS_PAGES),
+                libc::sysconf(libc::_SC_PAGESIZE),
+            )
+        };
+        (pages > 0 && size > 0).then(|| pages as u64 * size as u64)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
+}
+
+/// The most memory one request may take: the machine's physical memory (64 GiB where unknown).
+pub fn memory_budget() -> u64 {
+    physical_memory().unwrap_or(64 << 30)
+}
+
+/// Ok when `bytes` fit in [`memory_budget`]; else the end of a sentence saying why not
+/// ("need about 34.4 GB, more than this machine's 25.2 GB of memory").
+pub fn fits_in_memory(bytes: u64) -> Result<(), String> {
+    let budget = memory_budget();
+    if bytes <= budget {
+        return Ok(());
+    }
+    Err(format!(
+        "need about {:.1} GB, more than this machine's {:.1} GB of memory",
+        bytes as f64 / 1e9,
+        budget as f64 / 1e9
+    ))
+}
