@@ -104,6 +104,14 @@ struct ShellParticle {
 const B_END: u32 = 0x80000000u;
 const TINY_LENGTH: f32 = 1e-12;
 
+// Collider.kind (gpu::layout::collider_kind; tests/shaders.rs checks every shared constant).
+const KIND_PLANE: u32 = 0u;
+const KIND_SPHERE: u32 = 1u;
+const KIND_BOX: u32 = 2u;
+const KIND_CAPSULE: u32 = 3u;
+const KIND_FUNNEL: u32 = 4u;
+const KIND_WEDGE: u32 = 5u;
+
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> x: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> velocity: array<vec4<f32>>;

@@ -116,23 +116,23 @@ fn wedge_distance(p: vec3<f32>, half: vec3<f32>) -> vec4<f32> {
 // Signed distance to a collider's surface (xyz: outward normal, w: distance).
 fn collider_distance(c: Collider, p: vec3<f32>) -> vec4<f32> {
     switch c.kind {
-        case 0u: {
+        case KIND_PLANE: {
             return vec4<f32>(c.vector.xyz, dot(c.vector.xyz, p) - c.offset);
         }
-        case 2u: {
+        case KIND_BOX: {
             let inverse = vec4<f32>(-c.rotation.xyz, c.rotation.w);
             let d = box_distance(quat_rotate(inverse, p - c.vector.xyz), c.second.xyz);
             return vec4<f32>(quat_rotate(c.rotation, d.xyz), d.w);
         }
-        case 4u: {
+        case KIND_FUNNEL: {
             return funnel_distance(p - c.vector.xyz, c.radius, c.offset, c.second.x, c.second.y);
         }
-        case 5u: {
+        case KIND_WEDGE: {
             let inverse = vec4<f32>(-c.rotation.xyz, c.rotation.w);
             let d = wedge_distance(quat_rotate(inverse, p - c.vector.xyz), c.second.xyz);
             return vec4<f32>(quat_rotate(c.rotation, d.xyz), d.w);
         }
-        case 3u: {
+        case KIND_CAPSULE: {
             let axis = c.second.xyz - c.vector.xyz;
             let t = clamp(dot(p - c.vector.xyz, axis) / max(dot(axis, axis), 1e-12), 0.0, 1.0);
             return ball_distance(p - (c.vector.xyz + axis * t), c.radius);

@@ -348,6 +348,15 @@ fn bad_scenes_are_refused_naming_the_field() {
             leaves_no: &["out"],
         },
         Case {
+            name: "--out . would replace the folder the user stands in",
+            files: &[("scene.json", SMALL)],
+            args: &["bake", "scene.json", "--out", "."],
+            code: 2,
+            says: &["--out", "folder of its own"],
+            keeps: &[("scene.json", Some(SMALL))],
+            leaves_no: &[],
+        },
+        Case {
             name: "an --out that cannot be created is bad input (item 19)",
             files: &[("scene.json", SMALL), ("file.txt", "a file")],
             args: &["bake", "scene.json", "--out", "file.txt/out"],

@@ -1,6 +1,8 @@
-//! Every WGSL kernel parses and validates with naga (the compiler wgpu uses), each listed entry
-//! point exists, and every struct of `shaders/common.wgsl` has the size of its Rust mirror in
-//! `src/gpu/layout.rs`, so buffers upload unchanged.
+//! Every WGSL kernel and the preview shader parse and validate with naga (the compiler wgpu
+//! uses) and have their entry points; every struct of `shaders/common.wgsl` has the size and the
+//! member offsets of its Rust mirror in `src/gpu/layout.rs`, so buffers upload unchanged; and
+//! every constant the kernels share with the Rust code (list lengths, flags, collider kinds) has
+//! the Rust value.
 
 use drape::gpu::kernels::{source, KERNEL_FILES};
 use drape::gpu::layout::MIRRORS;
@@ -45,6 +47,87 @@ fn wgsl_structs_match_their_rust_mirrors() {
         assert_eq!(
             layouter[handle].size as usize, rust_size,
             "struct {name}: WGSL and Rust sizes differ"
+        );
+    }
+}
+
+#[test]
+fn constants_shared_with_rust_have_its_values() {
+    use drape::gpu::layout::SHARED_CONSTANTS;
+    let mut found = vec![0; SHARED_CONSTANTS.len()];
+    for (file, _, _) in KERNEL_FILES {
+        let (module, _) = module(file);
+        for (_, constant) in module.constants.iter() {
+            let Some(name) = constant.name.as_deref() else {
+                continue;
+            };
+            let Some(k) = SHARED_CONSTANTS.iter().position(|(n, _)| *n == name) else {
+                continue;
+            };
+            let value = match module.global_expressions[constant.init] {
+                naga::Expression::Literal(literal) => match literal {
+                    naga::Literal::U32(v) => v as f64,
+                    naga::Literal::I32(v) => v as f64,
+                    naga::Literal::F32(v) => v as f64,
+                    other => panic!("{file}: {name} is {other:?}"),
+                },
+                ref other => panic!("{file}: {name} is not a literal: {other:?}"),
+            };
+            assert_eq!(
+                value, SHARED_CONSTANTS[k].1,
+                "{file}: {name} = {value}, Rust says {}",
+                SHARED_CONSTANTS[k].1
+            );
+            found[k] += 1;
+        }
+    }
+    for ((name, _), count) in SHARED_CONSTANTS.iter().zip(&found) {
+        assert!(*count > 0, "no kernel declares {name}");
+    }
+}
+
+#[test]
+fn wgsl_members_sit_where_their_rust_mirrors_put_them() {
+    use drape::gpu::layout::MIRROR_OFFSETS;
+    let (module, _) = module("predict.wgsl");
+    for (name, fields) in MIRROR_OFFSETS {
+        let ty = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("common.wgsl has no struct {name}"))
+            .1;
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else {
+            panic!("{name} is not a struct");
+        };
+        let wgsl: Vec<(&str, usize)> = members
+            .iter()
+            .map(|m| (m.name.as_deref().unwrap_or("?"), m.offset as usize))
+            .collect();
+        assert_eq!(
+            wgsl,
+            fields.to_vec(),
+            "struct {name}: WGSL members and offsets differ from the Rust mirror's"
+        );
+    }
+}
+
+#[test]
+fn the_preview_shader_validates_and_has_its_entry_points() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/render.wgsl");
+    let text = std::fs::read_to_string(path).unwrap();
+    let module = naga::front::wgsl::parse_str(&text)
+        .unwrap_or_else(|e| panic!("render.wgsl:\n{}", e.emit_to_string(&text)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("render.wgsl: {e:?}"));
+    for entry in ["vs_main", "fs_main", "vs_line", "fs_line", "vs_shadow"] {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "render.wgsl: no entry point {entry}"
         );
     }
 }

@@ -72,9 +72,10 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
     // More threads than cores only take turns at every barrier of the frame (a 6 × 6 sheet: 0.03 s
     // on 1 thread, 7.8 s on 16, on 2 cores): clamp, and say so.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let clamped = options.threads.filter(|&n| n > cores).map(|n| {
-        format!("--threads {n} is more than this machine's {cores} cores: using {cores}")
-    });
+    let clamped = options
+        .threads
+        .filter(|&n| n > cores)
+        .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
     check_memory(scene, &options.scene_file)?;
     let staging = Staging::new(&options.out)?;

@@ -37,8 +37,9 @@ pub struct Grid {
     pub bucket: Vec<u32>,
 }
 
-/// Lattice steps within which two particles of one garment never collide.
-const SKIP_STEPS: i32 = 2;
+/// Lattice steps within which two particles of one garment never collide (`particles.wgsl`
+/// has the same, checked by `tests/shaders.rs`).
+pub const SKIP_STEPS: i32 = 2;
 
 impl ParticleCollisions {
     /// Collisions between every particle of `model` (built from `garments`) at `radius`.

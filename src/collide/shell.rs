@@ -47,6 +47,10 @@ type Candidates<'a> = &'a dyn Fn(&mut dyn FnMut(usize));
 /// penetration.
 pub const NEARBY: usize = 16;
 
+/// Shell particles a swept test gathers around a path before it walks the cells a second time
+/// instead (on the GPU a fixed array; `finish.wgsl` has the same, checked by `tests/shaders.rs`).
+pub const SHELL_FOUND: usize = 512;
+
 /// A garment particle's [`NEARBY`] shell particles.
 pub type Nearby = [u32; NEARBY];
 
@@ -237,7 +241,7 @@ impl ShellCollider {
         if self.swept && !self.now_normal.is_empty() && d.length() <= 64.0 * self.grid.cell {
             // One walk over the cells around the path serves both tests (they cover the end
             // point's neighbourhood too: a cell is as wide as the reach).
-            let mut found = [0u32; 512];
+            let mut found = [0u32; SHELL_FOUND];
             let mut count = 0;
             self.grid.near_segment(x3, p, |i| {
                 if count < found.len() {

@@ -136,38 +136,27 @@ impl Drop for Staging {
 }
 
 /// `destination` with its parent created and resolved: absolute, without `.`, `..` or symbolic
-/// links above the last name.
+/// links above the last name, which must be a name.
 fn resolve(destination: &Path) -> Result<PathBuf> {
-    let absolute = std::path::absolute(destination)
-        .map_err(|e| bad_out(format!("{}: {e}", destination.display())))?;
-    // A name ending in `..` or `.` (`--out out/..`) names an existing folder: resolve it whole.
-    let (parent, name) = match (absolute.parent(), absolute.file_name()) {
-        (Some(p), Some(n))
-            if !matches!(
-                destination.components().next_back(),
-                Some(std::path::Component::ParentDir | std::path::Component::CurDir)
-            ) =>
-        {
-            (p.to_path_buf(), n.to_os_string())
-        }
+    // `--out .` or `--out out/..` would replace a folder the user is standing in or above.
+    let name = match destination.components().next_back() {
+        Some(std::path::Component::Normal(name)) => name.to_os_string(),
         _ => {
-            let whole = std::fs::canonicalize(&absolute)
-                .map_err(|e| bad_out(format!("{}: {e}", destination.display())))?;
-            match (whole.parent(), whole.file_name()) {
-                (Some(p), Some(n)) => (p.to_path_buf(), n.to_os_string()),
-                _ => {
-                    return Err(bad_out(format!(
-                        "{} does not name a folder drape can replace",
-                        destination.display()
-                    )))
-                }
-            }
+            return Err(bad_out(format!(
+                "{} does not name a folder of its own (it ends in `.`, `..` or `/`)",
+                destination.display()
+            )))
         }
     };
-    std::fs::create_dir_all(&parent)
+    let absolute = std::path::absolute(destination)
+        .map_err(|e| bad_out(format!("{}: {e}", destination.display())))?;
+    let parent = absolute
+        .parent()
+        .expect("a path ending in a name has a parent");
+    std::fs::create_dir_all(parent)
         .map_err(|e| bad_out(format!("cannot create {}: {e}", parent.display())))?;
-    let parent = std::fs::canonicalize(&parent)
-        .map_err(|e| bad_out(format!("{}: {e}", parent.display())))?;
+    let parent =
+        std::fs::canonicalize(parent).map_err(|e| bad_out(format!("{}: {e}", parent.display())))?;
     Ok(parent.join(name))
 }
 

@@ -99,6 +99,100 @@ const _: () = assert!(std::mem::size_of::<crate::sim::model::Slot>() == 12);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelSpring>() == 12);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::ModelTether>() == 12);
 
+/// `Collider.kind` on the GPU (`common.wgsl` names the same values `KIND_*`).
+pub mod collider_kind {
+    pub const PLANE: u32 = 0;
+    pub const SPHERE: u32 = 1;
+    pub const BOX: u32 = 2;
+    pub const CAPSULE: u32 = 3;
+    pub const FUNNEL: u32 = 4;
+    pub const WEDGE: u32 = 5;
+}
+
+/// Constants the kernels share with the Rust code, by their WGSL name: `tests/shaders.rs`
+/// checks that every one is declared in some kernel with this value.
+pub const SHARED_CONSTANTS: [(&str, f64); 11] = [
+    ("NEARBY", crate::collide::shell::NEARBY as f64),
+    ("SHELL_FOUND", crate::collide::shell::SHELL_FOUND as f64),
+    ("SKIP_STEPS", crate::collide::particles::SKIP_STEPS as f64),
+    ("B_END", crate::sim::model::Slot::B_END as f64),
+    ("TINY_LENGTH", crate::sim::constraint::TINY_LENGTH as f64),
+    ("KIND_PLANE", collider_kind::PLANE as f64),
+    ("KIND_SPHERE", collider_kind::SPHERE as f64),
+    ("KIND_BOX", collider_kind::BOX as f64),
+    ("KIND_CAPSULE", collider_kind::CAPSULE as f64),
+    ("KIND_FUNNEL", collider_kind::FUNNEL as f64),
+    ("KIND_WEDGE", collider_kind::WEDGE as f64),
+];
+
+/// `(WGSL struct, [(member, byte offset in the Rust mirror)])` from the Rust fields of the same
+/// names.
+macro_rules! offsets {
+    ($name:literal, $t:ty, [$($field:ident),* $(,)?]) => {
+        ($name, &[$((stringify!($field), std::mem::offset_of!($t, $field))),*])
+    };
+}
+
+/// Every member of every mirrored WGSL struct with its offset in the Rust mirror, for the layout
+/// test (sizes alone would miss two members swapped).
+pub const MIRROR_OFFSETS: [(&str, &[(&str, usize)]); 8] = [
+    offsets!(
+        "Params",
+        GpuParams,
+        [
+            gravity_step,
+            particles,
+            springs,
+            structural,
+            colliders,
+            range_start,
+            range_end,
+            predict_next,
+            collider_base,
+            step,
+            inv_step,
+            keep,
+            omega
+        ]
+    ),
+    offsets!(
+        "Particle",
+        GpuParticle,
+        [inv_mass, inertia, diag_inv, contact_radius]
+    ),
+    offsets!(
+        "Collider",
+        GpuCollider,
+        [kind, friction, radius, offset, vector, second, rotation, moved]
+    ),
+    offsets!(
+        "Contacts",
+        GpuContacts,
+        [
+            inv_cell,
+            diameter,
+            table,
+            enabled,
+            shells,
+            shell_stride,
+            grid_stride,
+            nearby
+        ]
+    ),
+    offsets!(
+        "ShellInfo",
+        GpuShellInfo,
+        [first, count, grid, table, radius, friction, cell, flags]
+    ),
+    offsets!("Slot", crate::sim::model::Slot, [neighbour, spring, weight]),
+    offsets!("Spring", crate::sim::model::ModelSpring, [a, b, rest]),
+    offsets!(
+        "Tether",
+        crate::sim::model::ModelTether,
+        [particle, pin, rest]
+    ),
+];
+
 /// Every WGSL struct with the size of its Rust mirror, for the layout test.
 pub const MIRRORS: [(&str, usize); 9] = [
     ("Params", std::mem::size_of::<GpuParams>()),

@@ -80,19 +80,20 @@ fn storage_entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry
 
 /// A collider as the kernels read it.
 fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
+    use super::layout::collider_kind as kind;
     let mut rotation = glam::Quat::IDENTITY;
     let (kind, radius, offset, vector, second) = match c.shape {
-        Shape::Plane { normal, offset } => (0, 0.0, offset, normal, Vec3::ZERO),
-        Shape::Sphere { center, radius } => (1, radius, 0.0, center, Vec3::ZERO),
+        Shape::Plane { normal, offset } => (kind::PLANE, 0.0, offset, normal, Vec3::ZERO),
+        Shape::Sphere { center, radius } => (kind::SPHERE, radius, 0.0, center, Vec3::ZERO),
         Shape::Box {
             center,
             half,
             rotation: r,
         } => {
             rotation = r;
-            (2, 0.0, 0.0, center, half)
+            (kind::BOX, 0.0, 0.0, center, half)
         }
-        Shape::Capsule { start, end, radius } => (3, radius, 0.0, start, end),
+        Shape::Capsule { start, end, radius } => (kind::CAPSULE, radius, 0.0, start, end),
         Shape::Funnel {
             center,
             radius,
@@ -100,7 +101,7 @@ fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
             height,
             half_thickness,
         } => (
-            4,
+            kind::FUNNEL,
             radius,
             top_radius,
             center,
@@ -112,7 +113,7 @@ fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
             rotation: r,
         } => {
             rotation = r;
-            (5, 0.0, 0.0, center, half)
+            (kind::WEDGE, 0.0, 0.0, center, half)
         }
     };
     GpuCollider {

@@ -4,7 +4,7 @@
 use glam::Vec4;
 
 /// Lengths below this [m] have no direction; their springs project to zero length.
-const TINY_LENGTH: f32 = 1e-12;
+pub const TINY_LENGTH: f32 = 1e-12;
 
 /// Projective Dynamics local step for a distance spring (Bouaziz et al. 2014, §5.2; thesis eq. 3.9):
 /// the closest point of the constraint set to the current edge is the edge rescaled to its rest

@@ -96,10 +96,7 @@ impl SpinBarrier {
                 drop(guard);
                 panic!("{BROKEN}");
             }
-            guard = self
-                .wake
-                .wait(guard)
-                .unwrap_or_else(|e| e.into_inner());
+            guard = self.wake.wait(guard).unwrap_or_else(|e| e.into_inner());
         }
         self.sleepers.fetch_sub(1, Ordering::SeqCst);
     }
