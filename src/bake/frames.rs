@@ -51,6 +51,8 @@ pub fn run(
     let mut frame_ms = Vec::with_capacity(frames as usize);
     let mut residuals = Vec::new();
     let mut worst = vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
+    // FNV-1a over every baked frame's positions (f32 bits, export order, frame by frame).
+    let mut hash = crate::character::cache::FNV_OFFSET;
     for frame in 1..=frames {
         let start = Instant::now();
         backend.step_frame(sim)?;
@@ -82,11 +84,15 @@ pub fn run(
             break;
         }
         let exporting = Instant::now();
+        let positions = sim.export_positions();
+        hash = positions.iter().fold(hash, |h, p| {
+            crate::character::cache::fnv(h, bytemuck::bytes_of(&p.to_array()))
+        });
         if recording {
-            out.recorded.push(sim.export_positions());
+            out.recorded.push(positions.clone());
         }
         if let Some(w) = writer.as_mut() {
-            w.write(frame, sim.export_positions())?;
+            w.write(frame, positions)?;
         }
         lap(&mut out.around, "export", exporting);
         report.frames_baked = frame;
@@ -98,6 +104,7 @@ pub fn run(
         lap(&mut out.around, "export", finishing);
     }
     report.ms_per_frame = Timing::of(&frame_ms);
+    report.frames_hash = format!("{hash:016x}");
     report.torn_springs = sim.torn_springs;
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&worst);

@@ -52,6 +52,7 @@ pub(super) fn empty_report(
         frames_requested: scene.frames,
         frames_baked: 0,
         ms_per_frame: Timing::default(),
+        frames_hash: String::new(),
         stages_ms: Vec::new(),
         last_frame: None,
         worst_frame: None,

@@ -29,7 +29,7 @@ pub struct ShellCache {
 }
 
 /// FNV-1a's starting value.
-const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// FNV-1a, 64 bits: a stable hash of the inputs (not for security).
 pub(crate) fn fnv(hash: u64, bytes: &[u8]) -> u64 {

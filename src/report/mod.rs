@@ -28,6 +28,9 @@ pub struct Report {
     pub frames_requested: u32,
     pub frames_baked: u32,
     pub ms_per_frame: Timing,
+    /// FNV-1a (64 bits, hex) of every baked frame's positions: equal for runs that baked the
+    /// same numbers (see `docs/report-format.md` for which runs promise that).
+    pub frames_hash: String,
     /// Wall time per stage ([`crate::sim::schedule::TIMED`]): the simulation's stages on the
     /// CPU backend (the GPU runs them in one command buffer, untimed), and what runs around them
     /// on both.
