@@ -400,3 +400,67 @@ fn an_output_folder_that_cannot_be_made_fails_clearly_and_leaves_nothing() {
         .collect();
     assert_eq!(left.len(), 2, "{left:?}");
 }
+
+#[test]
+fn a_shot_starting_at_frame_1001_numbers_every_export_from_it() {
+    // The same bake numbered from 1001: OBJ files, PC2 start frame, USD time codes, preview
+    // images and the report carry the shot's frame numbers; the positions are those of a bake
+    // numbered from 1 (equal frames hashes).
+    let dir = common::temp_dir();
+    let d = dir.path();
+    common::write(
+        d,
+        "scene.json",
+        r#"{ "name": "shot", "frames": 3, "backend": "cpu", "frame_start": 1001,
+             "output": { "pc2": true, "usd": true, "preview": true, "preview_size": [64, 48] },
+             "garments": [{ "name": "cloth", "resolution": [6, 5], "pins": [[0, 0], [-1, 0]] }] }"#,
+    );
+    let out = common::drape(d, &["bake", "scene.json", "--out", "shot"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let shot = d.join("shot");
+    for k in 1001..=1003 {
+        assert!(shot.join(format!("obj/cloth_{k}.obj")).is_file(), "obj {k}");
+    }
+    assert!(!shot.join("obj/cloth_0001.obj").exists());
+    let pc2 = std::fs::read(shot.join("pc2/cloth.pc2")).unwrap();
+    let start = f32::from_le_bytes(pc2[20..24].try_into().unwrap());
+    assert_eq!(start, 1001.0, "PC2 start frame");
+    let usda = std::fs::read_to_string(shot.join("shot.usda")).unwrap();
+    assert!(usda.contains("startTimeCode = 1001") && usda.contains("endTimeCode = 1003"));
+    assert!(usda.contains("            1001: [(") && usda.contains("            1003: [("));
+    assert!(!usda.contains("            1: [("));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(shot.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["frame_start"], 1001);
+    assert_eq!(report["frames_baked"], 3);
+    assert_eq!(report["last_frame"]["frame"], 1003);
+    assert_eq!(report["penetrations_per_frame"][0]["frame"], 1001);
+    if report["preview"].is_object() {
+        for k in 1001..=1003 {
+            assert!(
+                shot.join(format!("preview/frame_{k}.png")).is_file(),
+                "png {k}"
+            );
+        }
+    }
+    // The same bake from frame 1, and `--frame-start` overriding the scene.
+    let from_one = common::drape(
+        d,
+        &[
+            "bake",
+            "scene.json",
+            "--out",
+            "one",
+            "--frame-start",
+            "1",
+            "--gltf",
+            "none",
+        ],
+    );
+    assert!(from_one.status.success(), "{}", common::stderr(&from_one));
+    let one: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("one/report.json")).unwrap()).unwrap();
+    assert_eq!(one["frame_start"], 1);
+    assert!(d.join("one/obj/cloth_0001.obj").is_file());
+    assert_eq!(one["frames_hash"], report["frames_hash"]);
+}

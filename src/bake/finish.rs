@@ -73,6 +73,7 @@ pub fn write(
         rest: &rest,
         materials: &materials,
         fps: scene.fps,
+        first_frame: scene.frame_start,
     };
     let exporting = Instant::now();
     let (outputs, exports) = write_exports(dir, &scene.name, &scene.output, &recorded)?;
@@ -94,7 +95,9 @@ fn preview(scene: &Scene, meshes: &[AnimatedMesh], dir: &Path, report: &mut Repo
         height: out.preview_size[1],
         wireframe: out.wireframe,
     };
-    match GpuContext::new(false).and_then(|ctx| render_sequence(ctx, meshes, options, dir)) {
+    match GpuContext::new(false)
+        .and_then(|ctx| render_sequence(ctx, meshes, options, dir, scene.frame_start))
+    {
         Ok(summary) => {
             report.outputs.preview = Some(summary.contact_sheet.clone());
             report.preview = Some(summary);

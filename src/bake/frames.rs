@@ -53,7 +53,9 @@ pub fn run(
     let mut worst = vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
     // FNV-1a over every baked frame's positions (f32 bits, export order, frame by frame).
     let mut hash = crate::character::cache::FNV_OFFSET;
-    for frame in 1..=frames {
+    for baked in 1..=frames {
+        // The shot's number of this frame (`frame_start`): what files and the report show.
+        let frame = report.frame_start + baked - 1;
         let start = Instant::now();
         backend.step_frame(sim)?;
         let tearing = Instant::now();
@@ -66,7 +68,7 @@ pub fn run(
             // From this frame on the garments have these faces (previews follow them).
             for (g, history) in sim.model().garments.iter().zip(&mut out.topology) {
                 if history.last().is_none_or(|(_, t)| *t != g.triangles) {
-                    history.push((frame as usize - 1, g.triangles.clone()));
+                    history.push((baked as usize - 1, g.triangles.clone()));
                 }
             }
         }
@@ -95,7 +97,7 @@ pub fn run(
             w.write(frame, positions)?;
         }
         lap(&mut out.around, "export", exporting);
-        report.frames_baked = frame;
+        report.frames_baked = baked;
         progress.inc(1);
     }
     if let Some(w) = writer {

@@ -49,6 +49,7 @@ pub(super) fn empty_report(
                 colours: g.colours,
             })
             .collect(),
+        frame_start: scene.frame_start,
         frames_requested: scene.frames,
         frames_baked: 0,
         ms_per_frame: Timing::default(),

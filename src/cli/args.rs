@@ -152,6 +152,9 @@ pub struct SceneArgs {
     /// Number of frames, overriding the scene's.
     #[arg(long, allow_hyphen_values = true)]
     pub frames: Option<u32>,
+    /// The shot's number of the first frame (e.g. 1001), overriding the scene's `frame_start`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub frame_start: Option<u32>,
     /// Outer solver iterations per substep, overriding the scene's (the scene's collision
     /// passes are capped at this number).
     #[arg(long, allow_hyphen_values = true)]

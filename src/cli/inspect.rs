@@ -23,8 +23,10 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     let model = Model::new(&garments);
     println!("scene '{}' ({file}): valid", scene.name);
     println!(
-        "  {} frames at {} fps, {} substeps per frame ({:.3} ms steps), {:?} integrator",
+        "  {} frames ({}–{}) at {} fps, {} substeps per frame ({:.3} ms steps), {:?} integrator",
         scene.frames,
+        scene.frame_start,
+        scene.frame_start + scene.frames - 1,
         scene.fps,
         scene.substeps_per_frame(),
         scene.step_seconds() * 1e3,

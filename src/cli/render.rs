@@ -27,6 +27,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<i32> {
         .into());
     };
     let (meshes, _fps) = gltf::read(&dir.join(file))?;
+    // The shot's first frame, as the bake's report says (1 for bakes before frame ranges).
+    let first_frame = report
+        .get("frame_start")
+        .and_then(|f| f.as_u64())
+        .map_or(1, |f| f as u32);
     let staging = dir.join(".preview.partial");
     let _ = std::fs::remove_dir_all(&staging);
     std::fs::create_dir(&staging).map_err(|e| Error::io(&staging, "cannot create", e))?;
@@ -35,8 +40,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<i32> {
         height: args.size.1,
         wireframe: args.wireframe,
     };
-    let result =
-        GpuContext::new(false).and_then(|ctx| render_sequence(ctx, &meshes, options, &staging));
+    let result = GpuContext::new(false)
+        .and_then(|ctx| render_sequence(ctx, &meshes, options, &staging, first_frame));
     let summary = match result {
         Ok(s) => s,
         Err(e) => {

@@ -33,6 +33,10 @@ pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
         scene.frames = n;
         scene::validate(&scene, &file).map_err(|e| flag("--frames", e))?;
     }
+    if let Some(n) = args.frame_start {
+        scene.frame_start = n;
+        scene::validate(&scene, &file).map_err(|e| flag("--frame-start", e))?;
+    }
     if let Some(n) = args.iterations {
         scene.solver.iterations = n;
         scene.solver.contact_passes = scene.solver.contact_passes.min(n.max(1));

@@ -37,13 +37,18 @@ pub fn pc2_bytes(frames: &[Vec<Vec3>], start_frame: f32) -> Vec<u8> {
     out
 }
 
-/// Writes `<name>.pc2` and `<name>_rest.obj` for each mesh into `dir` (frames numbered from 1);
-/// `rest` holds each mesh's rest positions.
-pub fn write_pc2(dir: &Path, meshes: &[AnimatedMesh], rest: &[Vec<Vec3>]) -> Result<Vec<PathBuf>> {
+/// Writes `<name>.pc2` and `<name>_rest.obj` for each mesh into `dir` (frames numbered from
+/// `first_frame`); `rest` holds each mesh's rest positions.
+pub fn write_pc2(
+    dir: &Path,
+    meshes: &[AnimatedMesh],
+    rest: &[Vec<Vec3>],
+    first_frame: u32,
+) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for (mesh, rest) in meshes.iter().zip(rest) {
         let path = dir.join(format!("{}.pc2", mesh.name));
-        std::fs::write(&path, pc2_bytes(&mesh.frames, 1.0))
+        std::fs::write(&path, pc2_bytes(&mesh.frames, first_frame as f32))
             .map_err(|e| Error::io(&path, "cannot write", e))?;
         written.push(path);
         let path = dir.join(format!("{}_rest.obj", mesh.name));
@@ -94,15 +99,15 @@ fn points(out: &mut String, ps: &[Vec3]) {
     out.push(']');
 }
 
-/// The `.usda` text of `meshes` animated at `fps`, frames numbered from 1.
-pub fn usda_text(meshes: &[AnimatedMesh], fps: f32) -> String {
+/// The `.usda` text of `meshes` animated at `fps`, frames numbered from `first_frame`.
+pub fn usda_text(meshes: &[AnimatedMesh], fps: f32, first_frame: u32) -> String {
     let frames = meshes.first().map_or(0, |m| m.frames.len());
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "#usda 1.0\n(\n    defaultPrim = \"bake\"\n    doc = \"drape {}\"\n    metersPerUnit = 1\n    upAxis = \"Y\"\n    startTimeCode = 1\n    endTimeCode = {}\n    timeCodesPerSecond = {fps}\n    framesPerSecond = {fps}\n)\n\ndef Xform \"bake\"\n{{",
+        "#usda 1.0\n(\n    defaultPrim = \"bake\"\n    doc = \"drape {}\"\n    metersPerUnit = 1\n    upAxis = \"Y\"\n    startTimeCode = {first_frame}\n    endTimeCode = {}\n    timeCodesPerSecond = {fps}\n    framesPerSecond = {fps}\n)\n\ndef Xform \"bake\"\n{{",
         env!("CARGO_PKG_VERSION"),
-        frames.max(1)
+        first_frame as usize + frames.max(1) - 1
     );
     let mut used = Vec::new();
     for mesh in meshes {
@@ -165,7 +170,7 @@ pub fn usda_text(meshes: &[AnimatedMesh], fps: f32) -> String {
             s.push_str("        normal3f[] primvars:normals (\n            interpolation = \"vertex\"\n        )\n");
             s.push_str("        normal3f[] primvars:normals.timeSamples = {\n");
             for (k, frame) in mesh.frames.iter().enumerate() {
-                let _ = write!(s, "            {}: ", k + 1);
+                let _ = write!(s, "            {}: ", first_frame as usize + k);
                 points(&mut s, &super::obj::vertex_normals(&mesh.triangles, frame));
                 s.push_str(",\n");
             }
@@ -173,7 +178,7 @@ pub fn usda_text(meshes: &[AnimatedMesh], fps: f32) -> String {
         }
         s.push_str("        point3f[] points.timeSamples = {\n");
         for (k, frame) in mesh.frames.iter().enumerate() {
-            let _ = write!(s, "            {}: ", k + 1);
+            let _ = write!(s, "            {}: ", first_frame as usize + k);
             points(&mut s, frame);
             s.push_str(",\n");
         }
@@ -183,7 +188,7 @@ pub fn usda_text(meshes: &[AnimatedMesh], fps: f32) -> String {
                 (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
                 |(lo, hi), p| (lo.min(*p), hi.max(*p)),
             );
-            let _ = write!(s, "            {}: ", k + 1);
+            let _ = write!(s, "            {}: ", first_frame as usize + k);
             points(&mut s, &[lo, hi]);
             s.push_str(",\n");
         }
@@ -193,10 +198,16 @@ pub fn usda_text(meshes: &[AnimatedMesh], fps: f32) -> String {
     s
 }
 
-/// Writes `<stem>.usda` into `dir`.
-pub fn write_usda(dir: &Path, stem: &str, meshes: &[AnimatedMesh], fps: f32) -> Result<PathBuf> {
+/// Writes `<stem>.usda` into `dir`, frames numbered from `first_frame`.
+pub fn write_usda(
+    dir: &Path,
+    stem: &str,
+    meshes: &[AnimatedMesh],
+    fps: f32,
+    first_frame: u32,
+) -> Result<PathBuf> {
     let path = dir.join(format!("{stem}.usda"));
-    std::fs::write(&path, usda_text(meshes, fps))
+    std::fs::write(&path, usda_text(meshes, fps, first_frame))
         .map_err(|e| Error::io(&path, "cannot write", e))?;
     Ok(path)
 }

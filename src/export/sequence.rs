@@ -222,6 +222,8 @@ pub struct Recording<'a> {
     /// Name and colour of every garment and character (the OBJ material library).
     pub materials: &'a [(String, [f32; 3])],
     pub fps: f32,
+    /// The shot's number of the first frame (`frame_start`).
+    pub first_frame: u32,
 }
 
 /// Writes the exports `spec` asks for into `dir`, named after `stem`.
@@ -270,13 +272,19 @@ pub fn write_exports(
         let folder = dir.join("pc2");
         std::fs::create_dir(&folder).map_err(|e| Error::io(&folder, "cannot create", e))?;
         timed("pc2", &mut || {
-            pointcache::write_pc2(&folder, &meshes[..garments], rest)
+            pointcache::write_pc2(&folder, &meshes[..garments], rest, recording.first_frame)
         })?;
         outputs.pc2 = Some("pc2".into());
     }
     if spec.usd {
         let files = timed("usd", &mut || {
-            Ok(vec![pointcache::write_usda(dir, stem, meshes, fps)?])
+            Ok(vec![pointcache::write_usda(
+                dir,
+                stem,
+                meshes,
+                fps,
+                recording.first_frame,
+            )?])
         })?;
         outputs.usd = files
             .first()
@@ -298,7 +306,7 @@ pub fn write_exports(
                         files.push(obj::write_mesh_frame(
                             &folder,
                             &m.name,
-                            k as u32 + 1,
+                            recording.first_frame + k as u32,
                             frame,
                             &m.triangles,
                         )?);

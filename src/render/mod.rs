@@ -730,13 +730,14 @@ pub struct RenderSummary {
     pub contact_sheet: String,
 }
 
-/// Renders every frame of `meshes` into `dir/preview/frame_0001.png …` plus
-/// `dir/preview/contact_sheet.png`.
+/// Renders every frame of `meshes` into `dir/preview/frame_<first_frame>.png …` (the shot's
+/// frame numbers, four digits at least) plus `dir/preview/contact_sheet.png`.
 pub fn render_sequence(
     ctx: GpuContext,
     meshes: &[AnimatedMesh],
     options: RenderOptions,
     dir: &Path,
+    first_frame: u32,
 ) -> Result<RenderSummary> {
     let adapter = ctx.describe();
     let diagonal = bounds(meshes).map_or(1.0, |(lo, hi)| (hi - lo).length());
@@ -750,7 +751,7 @@ pub fn render_sequence(
     let start = std::time::Instant::now();
     for k in 0..frames {
         let image = renderer.render(meshes, k)?;
-        let path = preview.join(format!("frame_{:04}.png", k + 1));
+        let path = preview.join(format!("frame_{:04}.png", first_frame as usize + k));
         save_png(&image, &path)?;
         if picks.contains(&k) {
             thumbnails.push((k + 1, sheet::thumbnail(&image)));

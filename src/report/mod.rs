@@ -25,6 +25,8 @@ pub struct Report {
     pub particles: usize,
     pub springs: usize,
     pub garments: Vec<GarmentReport>,
+    /// The shot's number of the first frame; every `frame` in the report is a shot frame number.
+    pub frame_start: u32,
     pub frames_requested: u32,
     pub frames_baked: u32,
     pub ms_per_frame: Timing,

@@ -29,6 +29,10 @@ pub struct Scene {
     pub fps: f32,
     /// Number of frames to bake. Default 120 (2 s at 60 fps).
     pub frames: u32,
+    /// The shot's number of the first frame: output files, exports, previews and the report
+    /// carry the shot's frame numbers (`obj/cloth_1001.obj` …). Default 1. Time (characters,
+    /// keyframes) still starts at 0 on this frame.
+    pub frame_start: u32,
     /// Simulation steps per frame. Default 10 when `timestep` is absent. Give one or the other.
     pub substeps: Option<u32>,
     /// Largest simulation step [s]; drape takes the smallest whole number of substeps per frame
@@ -87,6 +91,7 @@ impl Default for Scene {
             name: "scene".into(),
             fps: 60.0,
             frames: 120,
+            frame_start: 1,
             substeps: None,
             timestep: None,
             gravity: [0.0, -9.81, 0.0],

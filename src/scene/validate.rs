@@ -11,6 +11,9 @@ pub const MAX_PARTICLES: u64 = 50_000_000;
 /// must be refused before anything is allocated for it.
 pub const MAX_FRAMES: u32 = 1_000_000;
 
+/// The largest frame number a bake may write (`frame_start` + frames − 1).
+pub const MAX_FRAME_NUMBER: u32 = 9_999_999;
+
 /// The most substeps per frame (from `substeps` or `timestep`).
 pub const MAX_SUBSTEPS: u32 = 100_000;
 
@@ -120,6 +123,15 @@ fn check_timing(scene: &Scene) -> std::result::Result<(), Failure> {
         return Err(fail(
             "frames".into(),
             format!("must lie between 1 and {MAX_FRAMES} (got {})", scene.frames),
+        ));
+    }
+    if scene.frame_start > MAX_FRAME_NUMBER - (scene.frames - 1) {
+        return Err(fail(
+            "frame_start".into(),
+            format!(
+                "frame {} + {} frames passes frame {MAX_FRAME_NUMBER}",
+                scene.frame_start, scene.frames
+            ),
         ));
     }
     match (scene.substeps, scene.timestep) {
