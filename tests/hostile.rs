@@ -785,3 +785,56 @@ fn non_finite_geometry_is_refused() {
     );
     assert!(!d.join("out").exists());
 }
+
+#[test]
+fn an_interrupted_bake_keeps_its_frames_and_says_so() {
+    // A farm pre-empts with SIGTERM, a user presses Ctrl-C (SIGINT): the bake stops after the
+    // frame it is on, writes what it baked and a report that says it was interrupted, and exits
+    // 128 + the signal.
+    for (signal, code) in [(libc::SIGTERM, 143), (libc::SIGINT, 130)] {
+        let dir = temp_dir();
+        let d = dir.path();
+        std::fs::write(
+            d.join("scene.json"),
+            r#"{ "frames": 100000, "backend": "cpu", "output": { "gltf": "none" },
+                 "garments": [{ "name": "cloth", "resolution": [40, 40], "pins": [[0, 0], [-1, 0]] }] }"#,
+        )
+        .unwrap();
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
+            .args(["bake", "scene.json", "--out", "out"])
+            .env("XDG_CACHE_HOME", d.join("cache"))
+            .current_dir(d)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Wait until a few frames are written into the staging folder.
+        let started = std::time::Instant::now();
+        let written = || {
+            std::fs::read_dir(d)
+                .unwrap()
+                .filter_map(|e| e.ok())
+                .filter(|e| e.file_name().to_string_lossy().starts_with(".out.tmp-"))
+                .any(|e| e.path().join("obj/cloth_0003.obj").exists())
+        };
+        while !written() {
+            assert!(started.elapsed().as_secs() < 60, "no frames after a minute");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        // SAFETY: signalling our own child process.
+        unsafe { libc::kill(child.id() as libc::pid_t, signal) };
+        let out = child.wait_with_output().unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(code), "{err}");
+        assert!(err.contains("interrupted"), "{err}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("out/report.json")).unwrap())
+                .unwrap();
+        let baked = report["frames_baked"].as_u64().unwrap();
+        assert!(baked >= 3 && baked < 100000, "{baked}");
+        assert_eq!(report["interrupted"]["signal"], signal);
+        assert_eq!(report["interrupted"]["after_frame"], baked);
+        assert_eq!(report["stable"], true);
+        assert!(d.join(format!("out/obj/cloth_{baked:04}.obj")).is_file());
+        assert!(leftovers(d).is_empty(), "{:?}", leftovers(d));
+    }
+}

@@ -99,6 +99,14 @@ pub fn run(
         lap(&mut out.around, "export", exporting);
         report.frames_baked = baked;
         progress.inc(1);
+        let signal = super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed);
+        if signal != 0 && baked < frames {
+            report.interrupted = Some(crate::report::Interruption {
+                signal,
+                after_frame: frame,
+            });
+            break;
+        }
     }
     if let Some(w) = writer {
         let finishing = Instant::now();

@@ -24,6 +24,11 @@ use crate::scene::{GltfOutput, OutputSpec, Scene};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
+/// A signal that asks running bakes to stop after their current frame (0: none). The command
+/// line sets it from its SIGINT and SIGTERM handlers; a library user may set it too. The frames
+/// baked so far are exported and the report says `interrupted`.
+pub static INTERRUPT: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+
 /// How to run a bake, beyond the scene itself.
 #[derive(Clone, Debug)]
 pub struct BakeOptions {

@@ -62,6 +62,7 @@ pub(super) fn empty_report(
         torn_springs: 0,
         stable: true,
         failure: None,
+        interrupted: None,
         warnings: Vec::new(),
         characters: Vec::new(),
         residuals: None,

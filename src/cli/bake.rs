@@ -6,6 +6,31 @@ use drape::bake::{bake, BakeOptions};
 use drape::scene::{BackendKind, GltfOutput};
 use std::path::PathBuf;
 
+/// SIGINT and SIGTERM ask the bake to stop after the current frame (see
+/// [`drape::bake::INTERRUPT`]); a second one ends the process at once (the default action: the
+/// next bake into the same folder cleans up the staging folder it leaves).
+fn stop_on_signals() {
+    #[cfg(unix)]
+    {
+        extern "C" fn stop(signal: libc::c_int) {
+            drape::bake::INTERRUPT.store(signal, std::sync::atomic::Ordering::Relaxed);
+            // SAFETY: restoring the default disposition is async-signal-safe.
+            unsafe {
+                libc::signal(signal, libc::SIG_DFL);
+            }
+        }
+        for signal in [libc::SIGINT, libc::SIGTERM] {
+            // SAFETY: the handler only stores an atomic and resets its own disposition.
+            unsafe {
+                libc::signal(
+                    signal,
+                    stop as extern "C" fn(libc::c_int) as libc::sighandler_t,
+                );
+            }
+        }
+    }
+}
+
 pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     let (mut scene, scene_file) = resolve::scene(&args.scene)?;
     if let Some(b) = args.backend {
@@ -40,6 +65,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         progress: true,
         shell_cache: None,
     };
+    stop_on_signals();
     let result = bake(&scene, &options)?;
     let r = &result.report;
     for w in &r.warnings {
@@ -85,6 +111,20 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
             last.max_strain * 100.0,
             last.total_squared_error
         );
+    }
+    if let Some(i) = &r.interrupted {
+        let name = match i.signal {
+            2 => "SIGINT",
+            15 => "SIGTERM",
+            _ => "a signal",
+        };
+        eprintln!(
+            "drape: interrupted by {name} after frame {}: the {} frames baked so far and report.json are in {} (a resumable checkpoint is not written yet: bake again to finish)",
+            i.after_frame,
+            r.frames_baked,
+            result.out.display()
+        );
+        return Ok(128 + i.signal);
     }
     match &r.failure {
         Some(f) => {

@@ -50,6 +50,9 @@ pub struct Report {
     pub torn_springs: usize,
     pub stable: bool,
     pub failure: Option<Failure>,
+    /// Set when a signal (SIGINT, SIGTERM) stopped the bake early: the frames before it are
+    /// written and `stable` still says how they went.
+    pub interrupted: Option<Interruption>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.
     pub warnings: Vec<String>,
     /// The characters the garments collided with.
@@ -63,6 +66,15 @@ pub struct Report {
     pub exports: Vec<ExportReport>,
     /// The preview render, if one was made.
     pub preview: Option<crate::render::RenderSummary>,
+}
+
+/// A bake stopped by a signal.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Interruption {
+    /// The signal's number (2: SIGINT, 15: SIGTERM).
+    pub signal: i32,
+    /// The last frame baked (a shot frame number).
+    pub after_frame: u32,
 }
 
 /// One stage's wall time over the bake.
