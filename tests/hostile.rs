@@ -800,7 +800,7 @@ fn an_interrupted_bake_keeps_its_frames_and_says_so() {
                  "garments": [{ "name": "cloth", "resolution": [40, 40], "pins": [[0, 0], [-1, 0]] }] }"#,
         )
         .unwrap();
-        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
+        let child = std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
             .args(["bake", "scene.json", "--out", "out"])
             .env("XDG_CACHE_HOME", d.join("cache"))
             .current_dir(d)
