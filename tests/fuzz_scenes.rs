@@ -371,8 +371,47 @@ fn campaign(seed: u64, budget: Duration, cases: usize) -> Tally {
     tally
 }
 
+/// Replays the scene files in `dir` (findings of a campaign) through the same checks.
+fn replay(dir: &Path) -> Tally {
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut tally = Tally::default();
+    std::panic::set_hook(Box::new(|_| {}));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    files.sort();
+    for file in files {
+        let text = std::fs::read_to_string(&file).unwrap();
+        let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            exercise(&text, &base, true, &mut tally)
+        }));
+        match result {
+            Ok(Ok(())) => {}
+            Ok(Err(why)) => tally.findings.push(format!("{why} ({})", file.display())),
+            Err(_) => tally.findings.push(format!("panic ({})", file.display())),
+        }
+    }
+    let _ = std::panic::take_hook();
+    tally
+}
+
 #[test]
 fn mutated_scenes_never_panic() {
+    if let Some(dir) = std::env::var_os("DRAPE_FUZZ_REPLAY") {
+        let t = replay(Path::new(&dir));
+        println!(
+            "fuzz replay: {} cases, {} refused as bad input, {} stepped, {} baked, {} findings",
+            t.cases,
+            t.rejected,
+            t.stepped,
+            t.baked,
+            t.findings.len()
+        );
+        assert!(t.findings.is_empty(), "{:#?}", t.findings);
+        return;
+    }
     let seconds: u64 = std::env::var("DRAPE_FUZZ_SECONDS")
         .ok()
         .and_then(|s| s.parse().ok())
