@@ -285,3 +285,37 @@ fn a_blow_up_stops_with_a_report_and_the_frames_before_it() {
         .join(format!("out/obj/cloth_{failed:04}.obj"))
         .exists());
 }
+
+#[test]
+fn inspect_advises_on_the_garments_level_of_detail() {
+    // Spacing against the characters' shell radius: coarser than twice it lets cloth slip
+    // between shell particles, finer than a quarter of it is work the shell cannot use.
+    let dir = temp_dir();
+    let stool = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/characters/mannequin/stool.obj"
+    );
+    for (resolution, radius, says) in [
+        (10, 0.01, "coarser than twice the shell radius"),
+        (201, 0.03, "finer than a quarter of the shell radius"),
+        (41, 0.02, ""),
+    ] {
+        write(
+            dir.path(),
+            "scene.json",
+            &format!(
+                r#"{{ "characters": [{{ "file": "{stool}", "radius": {radius} }}],
+                     "garments": [{{ "name": "cloth", "resolution": [{resolution}, {resolution}] }}] }}"#
+            ),
+        );
+        let out = drape(dir.path(), &["inspect", "scene.json"]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert!(text.contains("particle spacing"), "{text}");
+        if says.is_empty() {
+            assert!(!text.contains("warning"), "{text}");
+        } else {
+            assert!(text.contains(says), "{resolution}: {text}");
+        }
+    }
+}

@@ -74,6 +74,9 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
             g.colouring.modulus,
         );
     }
+    for line in level_of_detail(&scene, &garments) {
+        println!("  {line}");
+    }
     for (c, r) in model.colour_ranges.iter().enumerate() {
         println!("  colour {c}: {} particles", r.len());
     }
@@ -92,4 +95,59 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         model.memory_bytes() as f64 / (1024.0 * 1024.0)
     );
     Ok(0)
+}
+
+/// Level-of-detail advice: each garment's particle spacing (its longest structural rest length)
+/// against the characters' shell radii. Shell particles overlap (centres a radius apart), so a
+/// garment particle falls between them only when the cloth's own gaps are wider than a shell
+/// particle: spacing above 2 × the radius lets cloth slip through the shell between its
+/// particles; spacing below a quarter of it resolves folds the shell cannot push on, at 16 × the
+/// particles of a spacing twice the radius.
+fn level_of_detail(
+    scene: &drape::scene::Scene,
+    garments: &[drape::garment::Garment],
+) -> Vec<String> {
+    let mut lines = Vec::new();
+    let smallest = scene
+        .characters
+        .iter()
+        .map(|c| c.radius)
+        .fold(f32::INFINITY, f32::min);
+    for g in garments {
+        let structural = g
+            .springs
+            .iter()
+            .filter(|s| s.family == SpringFamily::Stretch)
+            .map(|s| s.rest);
+        let spacing = structural.fold(0.0f32, f32::max);
+        if spacing <= 0.0 {
+            continue;
+        }
+        if !smallest.is_finite() {
+            lines.push(format!(
+                "garment '{}': particle spacing {spacing:.4} m (no characters to compare with)",
+                g.name
+            ));
+            continue;
+        }
+        let ratio = spacing / smallest;
+        lines.push(format!(
+            "garment '{}': particle spacing {spacing:.4} m = {ratio:.2} × the smallest shell radius ({smallest} m)",
+            g.name
+        ));
+        if ratio > 2.0 {
+            lines.push(format!(
+                "warning: garment '{}' is coarser than twice the shell radius: cloth can slip between shell particles; use at least {} particles per metre, or a larger character radius",
+                g.name,
+                (1.0 / (2.0 * smallest)).ceil()
+            ));
+        } else if ratio < 0.25 {
+            lines.push(format!(
+                "warning: garment '{}' is finer than a quarter of the shell radius: the shell cannot resolve folds that small and the particles cost time; {} particles per metre would do",
+                g.name,
+                (1.0 / (0.5 * smallest)).ceil()
+            ));
+        }
+    }
+    lines
 }
