@@ -6,7 +6,7 @@ use crate::character::{cache::input_hash, sequence_files, Character, ShellCache}
 use crate::collide::ShellCollider;
 use crate::error::{Error, Result};
 use crate::export::gltf::AnimatedMesh;
-use crate::export::sequence::CHARACTER_COLOUR;
+use crate::export::sequence::{weld, CHARACTER_COLOUR};
 use crate::report::CharacterReport;
 use crate::scene::Scene;
 use std::path::{Path, PathBuf};
@@ -95,9 +95,10 @@ pub fn load_characters(
         };
         // Exports and previews show the character when its topology holds over the frames.
         let mesh = if character.same_topology() {
+            let (triangles, frames) = weld(character.triangles_of(0), &character.frames);
             Some(AnimatedMesh {
                 name: name.clone(),
-                triangles: character.triangles_of(0).to_vec(),
+                triangles,
                 uvs: None,
                 colour: [
                     CHARACTER_COLOUR[0],
@@ -105,7 +106,7 @@ pub fn load_characters(
                     CHARACTER_COLOUR[2],
                     1.0,
                 ],
-                frames: character.frames.clone(),
+                frames,
                 topology: Vec::new(),
             })
         } else {

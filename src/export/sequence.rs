@@ -318,3 +318,77 @@ pub fn write_exports(
     }
     Ok((outputs, reports))
 }
+
+/// An indexed mesh: vertices that sit at the same place on every frame become one, and faces
+/// that collapse to a line or point are dropped. Importers split a vertex per face corner (an
+/// OBJ without vertex joining: the mannequin has 5 040 vertices for 858 positions), and every
+/// copy would be stored in every frame of the exports. A vertex that only starts at the same
+/// place (a seam a skin pulls apart) stays apart.
+pub fn weld(triangles: &[[u32; 3]], frames: &[Vec<Vec3>]) -> (Vec<[u32; 3]>, Vec<Vec<Vec3>>) {
+    let Some(first) = frames.first() else {
+        return (triangles.to_vec(), Vec::new());
+    };
+    let same = |a: usize, b: usize| frames.iter().all(|f| f[a] == f[b]);
+    let mut by_position: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
+    let mut kept: Vec<usize> = Vec::new();
+    let mut map = Vec::with_capacity(first.len());
+    for (v, p) in first.iter().enumerate() {
+        let candidates = by_position
+            .entry(p.to_array().map(f32::to_bits))
+            .or_default();
+        let k = match candidates.iter().find(|&&k| same(kept[k as usize], v)) {
+            Some(&k) => k,
+            None => {
+                kept.push(v);
+                candidates.push(kept.len() as u32 - 1);
+                kept.len() as u32 - 1
+            }
+        };
+        map.push(k);
+    }
+    let faces = triangles
+        .iter()
+        .map(|t| t.map(|i| map[i as usize]))
+        .filter(|[a, b, c]| a != b && b != c && a != c)
+        .collect();
+    let frames = frames
+        .iter()
+        .map(|f| kept.iter().map(|&v| f[v]).collect())
+        .collect();
+    (faces, frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weld_joins_what_coincides_on_every_frame() {
+        // A quad as two triangles with split corners (6 vertices, 4 places) over two frames; in
+        // the second frame vertex 5 leaves vertex 2's place, so they stay apart.
+        let quad = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::Y,
+        ];
+        let mut moved = quad.to_vec();
+        moved[5] = Vec3::new(0.0, 2.0, 0.0);
+        let triangles = [[0, 1, 2], [3, 4, 5]];
+        let (faces, frames) = weld(&triangles, &[quad.to_vec(), quad.to_vec()]);
+        assert_eq!(frames[0].len(), 4);
+        assert_eq!(faces.len(), 2);
+        for (face, original) in faces.iter().zip(triangles) {
+            for (i, o) in face.iter().zip(original) {
+                assert_eq!(frames[1][*i as usize], quad[o as usize]);
+            }
+        }
+        let (_, apart) = weld(&triangles, &[quad.to_vec(), moved]);
+        assert_eq!(apart[0].len(), 5);
+        // A face whose corners weld together is dropped.
+        let (faces, _) = weld(&[[0, 1, 3]], &[quad.to_vec()]);
+        assert!(faces.is_empty());
+    }
+}
