@@ -59,8 +59,16 @@ pub fn load_characters(
             let (c, how) = match ShellCache::read(&file) {
                 Ok(c) if c.inputs == hash && c.fits(triangles) => (c, "reused"),
                 found => {
-                    if let Err(e @ Error::InvalidField { .. }) = &found {
-                        warnings.push(format!("character {name}: {e}; rebuilt it"));
+                    match &found {
+                        Err(e @ Error::InvalidField { .. }) => {
+                            warnings.push(format!("character {name}: {e}; rebuilt it"))
+                        }
+                        Ok(c) if c.inputs == hash => warnings.push(format!(
+                            "character {name}: {}: the shell cache does not fit the character \
+                             (a triangle past its mesh, or a number not finite); rebuilt it",
+                            file.display()
+                        )),
+                        _ => {}
                     }
                     let c = ShellCache::build(&character, spec.radius, hash)?;
                     let written = std::fs::create_dir_all(cache_dir)
