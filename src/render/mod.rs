@@ -89,19 +89,8 @@ pub struct Renderer {
     view: View,
     meshes: Vec<MeshBuffers>,
     floor: MeshBuffers,
-    shadow_pipeline: wgpu::RenderPipeline,
-    surface_pipeline: wgpu::RenderPipeline,
-    line_list_pipeline: wgpu::RenderPipeline,
-    line_strip_pipeline: wgpu::RenderPipeline,
-    shadow_group: wgpu::BindGroup,
-    main_group: wgpu::BindGroup,
-    draw_group: wgpu::BindGroup,
-    shadow_view: wgpu::TextureView,
-    msaa_view: wgpu::TextureView,
-    depth_view: wgpu::TextureView,
-    resolved: wgpu::Texture,
-    readback: wgpu::Buffer,
-    padded_row: u32,
+    pipelines: setup::Pipelines,
+    targets: setup::Targets,
 }
 
 /// The bounding box of every drawn vertex of every frame (a vertex in no triangle of a mesh
@@ -233,25 +222,10 @@ impl Renderer {
             wgpu::BufferUsages::UNIFORM,
         );
 
-        let setup::Targets {
-            shadow_view,
-            msaa_view,
-            depth_view,
-            resolved,
-            readback,
-            padded_row,
-        } = setup::Targets::new(device, options.width, options.height);
+        let targets = setup::Targets::new(device, options.width, options.height);
 
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let setup::Pipelines {
-            shadow_pipeline,
-            surface_pipeline,
-            line_list_pipeline,
-            line_strip_pipeline,
-            shadow_group,
-            main_group,
-            draw_group,
-        } = setup::Pipelines::new(device, &globals, &draws, &shadow_view);
+        let pipelines = setup::Pipelines::new(device, &globals, &draws, &targets.shadow_view);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu {
                 reason: format!("{}: preview pipelines: {e}", ctx.adapter.name),
@@ -262,19 +236,8 @@ impl Renderer {
             view,
             meshes: gpu_meshes,
             floor,
-            shadow_pipeline,
-            surface_pipeline,
-            line_list_pipeline,
-            line_strip_pipeline,
-            shadow_group,
-            main_group,
-            draw_group,
-            shadow_view,
-            msaa_view,
-            depth_view,
-            resolved,
-            readback,
-            padded_row,
+            pipelines,
+            targets,
             ctx,
         })
     }
@@ -327,7 +290,7 @@ impl Renderer {
                 label: Some("shadow"),
                 color_attachments: &[],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.shadow_view,
+                    view: &self.targets.shadow_view,
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Clear(1.0),
                         store: wgpu::StoreOp::Store,
@@ -338,8 +301,8 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.shadow_pipeline);
-            pass.set_bind_group(0, &self.shadow_group, &[]);
+            pass.set_pipeline(&self.pipelines.shadow_pipeline);
+            pass.set_bind_group(0, &self.pipelines.shadow_group, &[]);
             for (_, m) in &all {
                 if let Some((indices, count)) = &m.triangles {
                     pass.set_vertex_buffer(0, m.vertices.slice(..));
@@ -352,16 +315,16 @@ impl Renderer {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("image"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.msaa_view,
+                    view: &self.targets.msaa_view,
                     depth_slice: None,
-                    resolve_target: Some(&self.resolved.create_view(&Default::default())),
+                    resolve_target: Some(&self.targets.resolved.create_view(&Default::default())),
                     ops: wgpu::Operations {
                         load: wgpu::LoadOp::Clear(CLEAR),
                         store: wgpu::StoreOp::Discard,
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth_view,
+                    view: &self.targets.depth_view,
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Clear(1.0),
                         store: wgpu::StoreOp::Discard,
@@ -372,26 +335,30 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_bind_group(0, &self.main_group, &[]);
+            pass.set_bind_group(0, &self.pipelines.main_group, &[]);
             let slot = |i: usize| [(i as u64 * DRAW_SLOT) as u32];
             for (i, m) in &all {
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
                 match &m.triangles {
                     Some((indices, count)) => {
-                        pass.set_pipeline(&self.surface_pipeline);
-                        pass.set_bind_group(1, &self.draw_group, &slot(*i));
+                        pass.set_pipeline(&self.pipelines.surface_pipeline);
+                        pass.set_bind_group(1, &self.pipelines.draw_group, &slot(*i));
                         pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
                         pass.draw_indexed(0..*count, 0, 0..1);
                     }
                     None => {
-                        pass.set_pipeline(&self.line_strip_pipeline);
-                        pass.set_bind_group(1, &self.draw_group, &slot(*i));
+                        pass.set_pipeline(&self.pipelines.line_strip_pipeline);
+                        pass.set_bind_group(1, &self.pipelines.draw_group, &slot(*i));
                         pass.draw(0..m.vertex_count, 0..1);
                     }
                 }
                 if let Some((edges, count)) = &m.edges {
-                    pass.set_pipeline(&self.line_list_pipeline);
-                    pass.set_bind_group(1, &self.draw_group, &slot(self.meshes.len() + 1));
+                    pass.set_pipeline(&self.pipelines.line_list_pipeline);
+                    pass.set_bind_group(
+                        1,
+                        &self.pipelines.draw_group,
+                        &slot(self.meshes.len() + 1),
+                    );
                     pass.set_index_buffer(edges.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(0..*count, 0, 0..1);
                 }
@@ -400,16 +367,16 @@ impl Renderer {
         let (w, h) = (self.options.width, self.options.height);
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
-                texture: &self.resolved,
+                texture: &self.targets.resolved,
                 mip_level: 0,
                 origin: wgpu::Origin3d::ZERO,
                 aspect: wgpu::TextureAspect::All,
             },
             wgpu::TexelCopyBufferInfo {
-                buffer: &self.readback,
+                buffer: &self.targets.readback,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    bytes_per_row: Some(self.padded_row),
+                    bytes_per_row: Some(self.targets.padded_row),
                     rows_per_image: Some(h),
                 },
             },
@@ -430,7 +397,7 @@ impl Renderer {
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(gpu_error(&e));
         }
-        let slice = self.readback.slice(..);
+        let slice = self.targets.readback.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
         self.ctx
             .device
@@ -441,11 +408,14 @@ impl Renderer {
             let data = slice
                 .get_mapped_range()
                 .map_err(|e| gpu_error(&format!("{e:?}")))?;
-            for row in data.chunks(self.padded_row as usize).take(h as usize) {
+            for row in data
+                .chunks(self.targets.padded_row as usize)
+                .take(h as usize)
+            {
                 pixels.extend_from_slice(&row[..(w * 4) as usize]);
             }
         }
-        self.readback.unmap();
+        self.targets.readback.unmap();
         let image = image::RgbaImage::from_raw(w, h, pixels).expect("width × height × 4 bytes");
         // A render that came out as one flat colour drew nothing: say so instead of saving it.
         let first = *image.get_pixel(0, 0);
