@@ -407,18 +407,6 @@ fn odd_but_valid_scenes_bake() {
             keeps: &[("out/report.json", None)],
             leaves_no: &[],
         },
-        Case {
-            name: "a GPU bake prints no complaint of the graphics stack (item 19)",
-            files: &[(
-                "scene.json",
-                r#"{ "frames": 1, "garments": [{ "resolution": [4, 4] }] }"#,
-            )],
-            args: &["bake", "scene.json", "--out", "out", "--backend", "gpu"],
-            code: 0,
-            says: &[],
-            keeps: &[("out/report.json", None)],
-            leaves_no: &[],
-        },
     ];
     for case in &cases {
         check(case);
@@ -836,5 +824,30 @@ fn an_interrupted_bake_keeps_its_frames_and_says_so() {
         assert_eq!(report["stable"], true);
         assert!(d.join(format!("out/obj/cloth_{baked:04}.obj")).is_file());
         assert!(leftovers(d).is_empty(), "{:?}", leftovers(d));
+    }
+}
+
+#[test]
+fn a_gpu_bake_prints_no_complaint_of_the_graphics_stack() {
+    // Item 19: without a display session Mesa's device-select layer printed "error:
+    // XDG_RUNTIME_DIR is invalid or not set" twice. On lavapipe (CI) the bake succeeds; without
+    // any Vulkan adapter it fails naming the GPU; either way the stack's lines stay away.
+    let dir = temp_dir();
+    let d = dir.path();
+    std::fs::write(
+        d.join("scene.json"),
+        r#"{ "frames": 1, "garments": [{ "resolution": [4, 4] }] }"#,
+    )
+    .unwrap();
+    let out = run(
+        d,
+        &["bake", "scene.json", "--out", "out", "--backend", "gpu"],
+    );
+    let err = stderr(&out);
+    assert!(!err.contains("XDG_RUNTIME_DIR"), "{err}");
+    match out.status.code() {
+        Some(0) => assert!(d.join("out/report.json").is_file()),
+        Some(1) => assert!(err.contains("GPU") && !d.join("out").exists(), "{err}"),
+        other => panic!("exit {other:?}: {err}"),
     }
 }
