@@ -319,6 +319,22 @@ fn bad_scenes_are_refused_naming_the_field() {
             leaves_no: &["out"],
         },
         Case {
+            name: "a mesh garment's work counts its lattice (validation saw 0 particles)",
+            files: &[
+                ("tet.obj", TETRAHEDRON),
+                (
+                    "scene.json",
+                    r#"{ "frames": 100000, "substeps": 10000, "solver": { "iterations": 100000 },
+                         "garments": [{ "kind": "mesh", "mesh": "tet.obj", "spacing": 0.1 }] }"#,
+                ),
+            ],
+            args: bake,
+            code: 2,
+            says: &["substeps", "particle-iterations"],
+            keeps: &[],
+            leaves_no: &["out"],
+        },
+        Case {
             name: "a sheet 4.3e9 m wide (the particle grid's cells overflowed)",
             files: scene(r#"{ "garments": [{ "size": [4294967296.0, 1] }] }"#),
             args: bake,

@@ -402,7 +402,22 @@ pub fn place_scene_meshes(scene: &mut crate::scene::Scene, file: &str) -> Result
         }
         scene.garments[i].placed = Some(std::sync::Arc::new(mesh));
     }
-    Ok(())
+    // Validation counted the sheets and ropes; the whole bake's work with the lattices too.
+    let particles = scene
+        .garments
+        .iter()
+        .map(|g| match &g.placed {
+            Some(p) => (p.voxels.surface_cells + p.voxels.interior_cells) as u64,
+            None => g.resolution.iter().map(|&n| n as u64).product(),
+        })
+        .sum();
+    crate::scene::validate::check_work(scene, particles).map_err(|(field, reason)| {
+        Error::InvalidField {
+            file: file.to_string(),
+            field,
+            reason,
+        }
+    })
 }
 
 /// Reads a garment mesh for a scene, naming the scene file and field on failure.

@@ -110,7 +110,7 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
 }
 
 /// A field that failed and why.
-type Failure = (String, String);
+pub(crate) type Failure = (String, String);
 
 /// The name, the clock (fps, frames, substeps or timestep), gravity, damping and the solver.
 fn check_timing(scene: &Scene) -> std::result::Result<(), Failure> {
@@ -238,7 +238,7 @@ fn check_garments(scene: &Scene) -> std::result::Result<u64, Failure> {
 }
 
 /// The whole bake's work: refused when it could not finish.
-fn check_work(scene: &Scene, particles: u64) -> std::result::Result<(), Failure> {
+pub(crate) fn check_work(scene: &Scene, particles: u64) -> std::result::Result<(), Failure> {
     let fail = |field: String, reason: String| (field, reason);
     let solver = &scene.solver;
     let work = scene.frames as f64

@@ -432,14 +432,20 @@ impl Simulation {
         let grid = &self.grid;
         let times = Mutex::new(schedule::StageTimes::default());
         team::run(|m| {
-            // The leader times the stages (each ends with a sync, so its time is the team's).
+            // The leader times the stages (each ends with a sync, so its time is the team's);
+            // the others keep no clock.
             let mut clock = std::time::Instant::now();
             let mut laps = schedule::StageTimes::default();
+            let mut lap = |stage: usize| {
+                if m.leads() {
+                    clock = laps.lap(stage, clock);
+                }
+            };
             // The prologue: predict the first substep; later predictions are fused into
             // `finish`.
             stages.predict(m);
             m.sync();
-            clock = laps.lap(schedule::timed("predict"), clock);
+            lap(schedule::timed("predict"));
             for k in 0..count {
                 for &stage in &schedule {
                     match stage {
@@ -464,7 +470,7 @@ impl Simulation {
                             m.sync();
                         }
                     }
-                    clock = laps.lap(stage.timed(), clock);
+                    lap(stage.timed());
                 }
             }
             if m.leads() {
