@@ -38,3 +38,38 @@ pub fn fits_in_memory(bytes: u64) -> Result<(), String> {
         budget as f64 / 1e9
     ))
 }
+
+/// Bytes free to this user on the filesystem that holds `path` (or, when it does not exist yet,
+/// its nearest existing ancestor); `None` where it cannot be read.
+pub fn free_disk(path: &std::path::Path) -> Option<u64> {
+    let absolute = std::path::absolute(path).ok()?;
+    let existing = absolute.ancestors().find(|p| p.exists())?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let name = std::ffi::CString::new(existing.as_os_str().as_bytes()).ok()?;
+        let mut stat: libc::statvfs = unsafe { std::mem::zeroed() };
+        // SAFETY: `name` is a NUL-terminated path and `stat` a plain struct statvfs fills in.
+        let status = unsafe { libc::statvfs(name.as_ptr(), &mut stat) };
+        (status == 0).then(|| stat.f_bavail as u64 * stat.f_frsize as u64)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = existing;
+        None
+    }
+}
+
+/// Ok when `bytes` fit in the free space of the disk that holds `path` (or when that cannot be
+/// read); else the end of a sentence saying why not.
+pub fn fits_on_disk(bytes: u64, path: &std::path::Path) -> Result<(), String> {
+    match free_disk(path) {
+        Some(free) if bytes > free => Err(format!(
+            "would write about {:.1} GB, more than the {:.1} GB free on the disk of {}",
+            bytes as f64 / 1e9,
+            free as f64 / 1e9,
+            path.display()
+        )),
+        _ => Ok(()),
+    }
+}

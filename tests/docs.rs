@@ -25,6 +25,47 @@ fn architecture_names_existing_paths() {
     );
 }
 
+/// The other direction: every module of `src/` (a folder or a file) is named as a path, and every
+/// file inside a module's folder by its name, so the page cannot fall behind the code.
+#[test]
+fn architecture_names_every_module_and_file() {
+    let text = std::fs::read_to_string("docs/architecture.md").unwrap();
+    let mut missing = Vec::new();
+    for entry in std::fs::read_dir("src").unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if name == "lib.rs" || name == "main.rs" {
+            continue;
+        }
+        if path.is_dir() {
+            if !text.contains(&format!("`src/{name}/`")) {
+                missing.push(format!("src/{name}/"));
+            }
+            for file in std::fs::read_dir(&path).unwrap() {
+                let file = file.unwrap().path();
+                let stem = file.file_name().unwrap().to_string_lossy().into_owned();
+                if stem == "mod.rs" {
+                    continue;
+                }
+                let named = if file.is_dir() {
+                    format!("`{stem}/`")
+                } else {
+                    format!("`{stem}`")
+                };
+                if !text.contains(&named) && !text.contains(&format!("src/{name}/{stem}")) {
+                    missing.push(format!("src/{name}/{stem}"));
+                }
+            }
+        } else if !text.contains(&format!("src/{name}")) {
+            missing.push(format!("src/{name}"));
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "docs/architecture.md does not name {missing:?}"
+    );
+}
+
 #[test]
 fn scenes_and_documented_examples_are_valid() {
     for entry in std::fs::read_dir("scenes").unwrap() {

@@ -126,13 +126,13 @@ fn bad_scenes_are_refused_naming_the_field() {
             leaves_no: &["out"],
         },
         Case {
-            name: "frames that do not fit in memory (item 3)",
+            name: "frames that do not fit on the disk (item 3)",
             files: scene(
                 r#"{ "frames": 900000, "backend": "cpu", "garments": [{ "resolution": [400, 400] }] }"#,
             ),
             args: bake,
             code: 2,
-            says: &["frames", "GB", "memory"],
+            says: &["frames", "GB", "disk"],
             keeps: &[],
             leaves_no: &["out"],
         },

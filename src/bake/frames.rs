@@ -1,50 +1,32 @@
-//! The frame loop: step, tear, measure, record and write each frame, until the last or until the
-//! simulation becomes unstable.
+//! The frame loop: step, tear, measure and write each frame as it is made, until the last or
+//! until the simulation becomes unstable.
 
+use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics};
 use crate::backend::Backend;
 use crate::collide;
 use crate::error::Result;
-use crate::export::FrameWriter;
+use crate::export::sequence::BakeMeshes;
 use crate::report::{Failure, FramePenetrations, Report, Timing};
 use crate::sim::schedule::{self, StageTimes};
 use crate::sim::{metrics, Simulation};
-use glam::Vec3;
 use std::time::Instant;
 
-/// What the loop hands to the exports.
-pub struct Frames {
-    /// Every baked frame's positions, export order (when an export after the loop needs them).
-    pub recorded: Vec<Vec<Vec3>>,
-    /// Per garment, its faces whenever tearing changed them: (first frame index, triangles).
-    pub topology: Vec<Vec<(usize, Vec<[u32; 3]>)>>,
-    /// Time of the stages around the simulation's own (tearing, metrics, export).
-    pub around: StageTimes,
-}
-
-/// Bakes `frames` frames of `sim` on `backend`, writing OBJ frames through `writer` and keeping
-/// positions when `recording`; fills `report`'s per-frame fields and stops at the first unstable
-/// frame (recorded in `report.failure`).
+/// Bakes `report.frames_requested` frames of `sim` on `backend`, handing each to `exports` (as
+/// `meshes` shows it); fills `report`'s per-frame fields and stops at the first unstable frame
+/// (recorded in `report.failure`). Returns the time of the stages around the simulation's own
+/// (tearing, metrics, export).
 pub fn run(
     sim: &mut Simulation,
     backend: &mut Backend,
-    mut writer: Option<&mut FrameWriter>,
-    recording: bool,
+    meshes: &mut BakeMeshes,
+    exports: &mut Exports,
     report: &mut Report,
     progress: &indicatif::ProgressBar,
-) -> Result<Frames> {
+) -> Result<StageTimes> {
     let frames = report.frames_requested;
     let initial_energy = sim.energy();
-    let mut out = Frames {
-        recorded: Vec::new(),
-        topology: sim
-            .model()
-            .garments
-            .iter()
-            .map(|g| vec![(0, g.triangles.clone())])
-            .collect(),
-        around: StageTimes::default(),
-    };
+    let mut around = StageTimes::default();
     let lap = |times: &mut StageTimes, stage: &str, since: Instant| {
         times.lap(schedule::timed(stage), since);
     };
@@ -62,25 +44,21 @@ pub fn run(
         if sim.tears() && sim.tear() > 0 {
             // The GPU takes the torn model (and the state it produced) afresh.
             backend.reload(sim)?;
-            if let Some(w) = writer.as_mut() {
-                w.set_garments(sim.model().garments.clone())?;
-            }
-            // From this frame on the garments have these faces (previews follow them).
-            for (g, history) in sim.model().garments.iter().zip(&mut out.topology) {
-                if history.last().is_none_or(|(_, t)| *t != g.triangles) {
-                    history.push((baked as usize - 1, g.triangles.clone()));
-                }
+            // From this frame on the garments have these faces (exports follow them).
+            for g in meshes.tear(&sim.model().garments) {
+                let faces = &sim.model().garments[g].triangles;
+                exports.faces(g, baked as usize - 1, faces)?;
             }
         }
         frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
-        lap(&mut out.around, "tearing", tearing);
+        lap(&mut around, "tearing", tearing);
 
         let measuring = Instant::now();
         let unstable = measure(sim, frame, &initial_energy, &mut worst, report);
         if let Some(r) = &sim.residuals {
             residuals.push(r.clone());
         }
-        lap(&mut out.around, "metrics", measuring);
+        lap(&mut around, "metrics", measuring);
         if let Some(reason) = unstable {
             report.failure = Some(Failure { frame, reason });
             break;
@@ -90,13 +68,10 @@ pub fn run(
         hash = positions.iter().fold(hash, |h, p| {
             crate::character::cache::fnv(h, bytemuck::bytes_of(&p.to_array()))
         });
-        if recording {
-            out.recorded.push(positions.clone());
+        if !exports.is_empty() {
+            exports.frame(meshes.frame(baked as usize - 1, frame, &positions))?;
         }
-        if let Some(w) = writer.as_mut() {
-            w.write(frame, positions)?;
-        }
-        lap(&mut out.around, "export", exporting);
+        lap(&mut around, "export", exporting);
         report.frames_baked = baked;
         progress.inc(1);
         let signal = super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed);
@@ -108,11 +83,6 @@ pub fn run(
             break;
         }
     }
-    if let Some(w) = writer {
-        let finishing = Instant::now();
-        w.finish()?;
-        lap(&mut out.around, "export", finishing);
-    }
     report.ms_per_frame = Timing::of(&frame_ms);
     report.frames_hash = format!("{hash:016x}");
     report.torn_springs = sim.torn_springs;
@@ -121,7 +91,7 @@ pub fn run(
     if sim.residuals.is_some() {
         report.residuals = Some(residuals);
     }
-    Ok(out)
+    Ok(around)
 }
 
 /// Measures frame `frame`: strain, penetrations (into `report` and the worst so far in `worst`)

@@ -2,14 +2,15 @@
 //! all inside a staging folder that becomes the output folder at the end.
 //!
 //! In three steps: [`prepare`] builds the complete simulation from the scene and its
-//! [`characters`]; [`frames`] steps, measures and writes each frame on the scene's
-//! [`Backend`]; [`finish`] writes the exports that need every frame and the preview. A run that
-//! turns unstable stops at that frame: the frames baked so far and a report that says what
-//! happened are still moved into place, so the user can see where it went wrong.
+//! [`characters`]; [`frames`] steps and measures each frame on the scene's [`Backend`] and
+//! hands it to the [`output`]s, which write it at once (memory stays flat however long the
+//! shot); closing them makes the USD layer and the preview from the frames spooled to disk. A
+//! run that turns unstable stops at that frame: the frames baked so far and a report that says
+//! what happened are still moved into place, so the user can see where it went wrong.
 
 pub mod characters;
-mod finish;
 mod frames;
+mod output;
 pub mod prepare;
 mod report;
 
@@ -18,11 +19,14 @@ pub use prepare::{simulation, Prepared};
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
-use crate::export::{FrameWriter, Staging};
+use crate::export::sequence::BakeMeshes;
+use crate::export::Staging;
 use crate::report::{Adapter, Report, StageTiming};
-use crate::scene::{GltfOutput, OutputSpec, Scene};
+use crate::scene::{GltfOutput, Scene};
+use crate::sim::schedule;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// A signal that asks running bakes to stop after their current frame (0: none). The command
 /// line sets it from its SIGINT and SIGTERM handlers; a library user may set it too. The frames
@@ -82,7 +86,7 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         .filter(|&n| n > cores)
         .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
-    check_memory(scene, &options.scene_file)?;
+    check_resources(scene, &options.scene_file, &options.out)?;
     let staging = Staging::new(&options.out)?;
     let written = pool
         .install(|| run(scene, options, staging.path(), pool.current_num_threads()))
@@ -103,12 +107,26 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
     })
 }
 
-/// Refuses a bake whose frames would not fit in this machine's memory (exit 2 naming `frames`),
-/// before anything is allocated for them: every garment vertex of every frame is kept for the
-/// exports and previews.
-pub fn check_memory(scene: &Scene, file: &str) -> Result<()> {
-    let recording = records(&scene.output);
-    let particles: u64 = scene
+/// Refuses a bake whose report would not fit in this machine's memory or whose files would
+/// not fit on the disk that holds `out` (exit 2 naming `frames`), before anything is written.
+/// Frames stream to disk as they are made, so memory holds one frame of every mesh and the
+/// report's per-frame entries.
+pub fn check_resources(scene: &Scene, file: &str, out: &Path) -> Result<()> {
+    let refuse = |reason: String| Error::InvalidField {
+        file: file.to_string(),
+        field: "frames".into(),
+        reason: format!("{} frames {reason}", scene.frames),
+    };
+    let frames = scene.frames as u64;
+    crate::limits::fits_in_memory(frames.saturating_mul(256)).map_err(refuse)?;
+    let bytes = output_bytes(scene);
+    crate::limits::fits_on_disk(bytes, out).map_err(refuse)
+}
+
+/// About how many bytes a bake of `scene` writes (its garments, without characters).
+fn output_bytes(scene: &Scene) -> u64 {
+    let spec = &scene.output;
+    let vertices: u64 = scene
         .garments
         .iter()
         .map(|g| match g.kind {
@@ -118,23 +136,30 @@ pub fn check_memory(scene: &Scene, file: &str) -> Result<()> {
             _ => g.resolution.iter().map(|&n| n as u64).product(),
         })
         .sum();
-    // 12 bytes per position and frame when recorded, plus the report's per-frame entries.
-    let per_frame = if recording { particles * 12 } else { 0 } + 256;
-    let bytes = per_frame.saturating_mul(scene.frames as u64);
-    crate::limits::fits_in_memory(bytes).map_err(|reason| Error::InvalidField {
-        file: file.to_string(),
-        field: "frames".into(),
-        reason: format!("{} frames {reason}", scene.frames),
-    })
-}
-
-/// True when an export or the preview needs every frame's positions after the loop.
-fn records(output: &OutputSpec) -> bool {
-    output.gltf != GltfOutput::None
-        || output.pc2
-        || output.usd
-        || output.preview
-        || output.character_obj
+    let frames = scene.frames as u64;
+    // Bytes per vertex and frame: OBJ text (v, vt, vn lines and about two faces), glTF
+    // position and normal deltas, PC2 points, USD text (points, normals, extent), the spool.
+    let mut per_vertex = 0;
+    per_vertex += if spec.obj { 160 } else { 0 };
+    per_vertex += if spec.gltf != GltfOutput::None { 24 } else { 0 };
+    per_vertex += if spec.pc2 { 12 } else { 0 };
+    per_vertex += if spec.usd { 100 } else { 0 };
+    per_vertex += if spec.usd || spec.preview { 12 } else { 0 };
+    let images = if spec.preview {
+        spec.preview_size[0] as u64 * spec.preview_size[1] as u64 / 2
+    } else {
+        0
+    };
+    // The glTF animation's weights: frames² floats per garment.
+    let weights = if spec.gltf != GltfOutput::None {
+        (scene.garments.len() as u64)
+            .saturating_mul(frames.saturating_mul(frames).saturating_mul(4))
+    } else {
+        0
+    };
+    frames
+        .saturating_mul(vertices.saturating_mul(per_vertex).saturating_add(images))
+        .saturating_add(weights)
 }
 
 fn run(
@@ -153,20 +178,16 @@ fn run(
     } = simulation(scene, characters, &options.scene_file)?;
     let mut backend = Backend::for_scene(scene.backend, &sim, &mut warnings)?;
     let rest = sim.export_positions();
-    let obj_dir = dir.join("obj");
-    if scene.output.obj {
-        std::fs::create_dir(&obj_dir).map_err(|e| Error::io(&obj_dir, "cannot create", e))?;
-    }
+    let mut meshes = BakeMeshes::new(
+        &sim.model().garments,
+        character_meshes,
+        &scene.colliders,
+        scene.frames as usize,
+        scene.fps,
+    );
     // While the GPU simulates the CPU is free to write; on the CPU a writer thread would only
     // take turns with the solver.
-    let mut writer = scene.output.obj.then(|| {
-        let garments = sim.model().garments.clone();
-        if backend.is_gpu() {
-            FrameWriter::spawn(obj_dir.clone(), garments)
-        } else {
-            FrameWriter::inline(obj_dir.clone(), garments)
-        }
-    });
+    let mut exports = output::Exports::open(scene, dir, &meshes, &rest, backend.is_gpu())?;
     let mut report = report::empty_report(scene, options, &sim, threads);
     report.warnings = warnings;
     report.characters = characters;
@@ -181,30 +202,22 @@ fn run(
             backend: format!("{:?}", info.backend),
         });
     }
-    let recording = records(&scene.output);
     let progress = progress_bar(scene.frames as u64, options.progress);
-    let mut baked = frames::run(
+    let mut around = frames::run(
         &mut sim,
         &mut backend,
-        writer.as_mut(),
-        recording,
+        &mut meshes,
+        &mut exports,
         &mut report,
         &progress,
     )?;
     progress.finish_and_clear();
-    if report.frames_baked > 0 {
-        finish::write(
-            scene,
-            &sim,
-            &mut baked,
-            character_meshes,
-            &rest,
-            dir,
-            &mut report,
-        )?;
-    }
+    let closing = Instant::now();
+    let baked = report.frames_baked as usize;
+    exports.close(scene, dir, baked, &mut report)?;
+    around.lap(schedule::timed("export"), closing);
     let mut stage_times = sim.stage_times.clone();
-    stage_times.add(&baked.around);
+    stage_times.add(&around);
     report.stages_ms = StageTiming::of(&stage_times, report.frames_baked);
     Ok((report, sim.export_positions()))
 }

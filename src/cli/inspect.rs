@@ -19,7 +19,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     let (scene, file) = resolve::scene(&args.scene)?;
     let garments = drape::garment::build_all(&scene);
     drape::garment::check_selections(&scene, &garments, &file)?;
-    drape::bake::check_memory(&scene, &file)?;
+    drape::bake::check_resources(&scene, &file, std::path::Path::new("."))?;
     let model = Model::new(&garments);
     println!("scene '{}' ({file}): valid", scene.name);
     println!(

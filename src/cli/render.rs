@@ -4,7 +4,7 @@
 use super::args::RenderArgs;
 use drape::export::gltf;
 use drape::gpu::GpuContext;
-use drape::render::{render_sequence, RenderOptions};
+use drape::render::{render_sequence, InMemory, RenderOptions};
 use drape::Error;
 
 pub fn run(args: RenderArgs) -> anyhow::Result<i32> {
@@ -40,8 +40,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<i32> {
         height: args.size.1,
         wireframe: args.wireframe,
     };
-    let result = GpuContext::new(false)
-        .and_then(|ctx| render_sequence(ctx, &meshes, options, &staging, first_frame));
+    let result = GpuContext::new(false).and_then(|ctx| {
+        render_sequence(ctx, &mut InMemory(&meshes), options, &staging, first_frame)
+    });
     let summary = match result {
         Ok(s) => s,
         Err(e) => {

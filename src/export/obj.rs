@@ -1,12 +1,12 @@
-//! Wavefront OBJ frames: one file per garment per frame, `<garment>_<frame:04>.obj`, vertices in
-//! grid order (the order of `report.json` and of every other export), with per-vertex normals,
-//! UVs, and triangles (a rope, which has no faces, is written as one polyline).
+//! Wavefront OBJ frames: one file per garment (and, when asked, character) per frame,
+//! `<name>_<frame:04>.obj`, vertices in grid order (the order of `report.json` and of every
+//! other export), with per-vertex normals, UVs, and triangles (a rope, which has no faces, is written as one polyline).
 //!
 //! Coordinates are printed with Rust's shortest round-trip formatting, so a reader gets back the
 //! exact `f32` values the simulation produced.
 
+use super::sink::{Frame, FrameSink, MeshInfo, Role, Written};
 use crate::error::{Error, Result};
-use crate::sim::model::GarmentRange;
 use glam::Vec3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -28,16 +28,21 @@ pub fn write_materials(dir: &Path, materials: &[(String, [f32; 3])]) -> Result<P
     Ok(path)
 }
 
-/// Writes a mesh frame with no UVs (a character) as `dir/<name>_<frame:04>.obj`.
-pub fn write_mesh_frame(
-    dir: &Path,
+/// File name of `mesh`'s frame `frame` (the shot's number, four digits at least).
+pub fn frame_file_name(mesh: &str, frame: u32) -> String {
+    format!("{mesh}_{frame:04}.obj")
+}
+
+/// The OBJ text of one frame of a mesh: vertices in the order given, UVs when it has them,
+/// smooth normals and faces, or one polyline for a mesh without faces (a rope).
+pub fn frame_text(
     name: &str,
     frame: u32,
     positions: &[Vec3],
     triangles: &[[u32; 3]],
-) -> Result<PathBuf> {
-    let path = dir.join(frame_file_name(name, frame));
-    let mut s = String::with_capacity(positions.len() * 80 + triangles.len() * 40);
+    uvs: Option<&[[f32; 2]]>,
+) -> String {
+    let mut s = String::with_capacity(positions.len() * 96 + triangles.len() * 40);
     let _ = writeln!(
         s,
         "# drape bake: {name}, frame {frame}\nmtllib {MATERIALS}\no {name}\nusemtl {name}"
@@ -45,67 +50,122 @@ pub fn write_mesh_frame(
     for p in positions {
         let _ = writeln!(s, "v {} {} {}", p.x, p.y, p.z);
     }
+    for uv in uvs.unwrap_or(&[]) {
+        let _ = writeln!(s, "vt {} {}", uv[0], uv[1]);
+    }
+    let textured = uvs.is_some();
+    if triangles.is_empty() {
+        s.push('l');
+        for i in 1..=positions.len() {
+            let _ = if textured {
+                write!(s, " {i}/{i}")
+            } else {
+                write!(s, " {i}")
+            };
+        }
+        s.push('\n');
+        return s;
+    }
     for n in vertex_normals(triangles, positions) {
         let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
     }
     for t in triangles {
         let [a, b, c] = t.map(|i| i + 1);
-        let _ = writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}");
-    }
-    std::fs::write(&path, s).map_err(|e| Error::io(&path, "cannot write", e))?;
-    Ok(path)
-}
-
-/// File name of `garment`'s frame `frame` (1-based).
-pub fn frame_file_name(garment: &str, frame: u32) -> String {
-    format!("{garment}_{frame:04}.obj")
-}
-
-/// Writes one garment's frame into `dir`; `positions` are the garment's particles in grid order
-/// (a mesh garment writes its embedded surface).
-pub fn write_frame(
-    dir: &Path,
-    garment: &GarmentRange,
-    frame: u32,
-    positions: &[Vec3],
-) -> Result<PathBuf> {
-    let path = dir.join(frame_file_name(&garment.name, frame));
-    let text = frame_text(garment, frame, positions);
-    std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
-    Ok(path)
-}
-
-/// The OBJ text of one frame; `particles` are the garment's particles in grid order.
-pub fn frame_text(garment: &GarmentRange, frame: u32, particles: &[Vec3]) -> String {
-    let surface = garment.surface(particles);
-    let positions = &surface[..];
-    let mut s = String::with_capacity(positions.len() * 96);
-    let _ = writeln!(s, "# drape bake: garment {}, frame {frame}", garment.name);
-    let _ = writeln!(s, "mtllib {MATERIALS}");
-    let _ = writeln!(s, "o {}", garment.name);
-    let _ = writeln!(s, "usemtl {}", garment.name);
-    for p in positions {
-        let _ = writeln!(s, "v {} {} {}", p.x, p.y, p.z);
-    }
-    for uv in &garment.uvs {
-        let _ = writeln!(s, "vt {} {}", uv[0], uv[1]);
-    }
-    if garment.triangles.is_empty() {
-        s.push('l');
-        for i in 1..=positions.len() {
-            let _ = write!(s, " {i}/{i}");
-        }
-        s.push('\n');
-        return s;
-    }
-    for n in vertex_normals(&garment.triangles, positions) {
-        let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
-    }
-    for t in &garment.triangles {
-        let [a, b, c] = t.map(|i| i + 1);
-        let _ = writeln!(s, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}");
+        let _ = if textured {
+            writeln!(s, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")
+        } else {
+            writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}")
+        };
     }
     s
+}
+
+/// Writes every garment's frame (and every character's, when asked) as
+/// `<mesh>_<frame>.obj`, with `materials.mtl` beside them.
+pub struct ObjFrames {
+    dir: PathBuf,
+    meshes: Vec<MeshInfo>,
+    characters: bool,
+    /// `materials.mtl`, then the garments' and the characters' frames.
+    library: PathBuf,
+    written: (Vec<PathBuf>, Vec<PathBuf>),
+}
+
+impl ObjFrames {
+    /// Writes `dir/materials.mtl` for `meshes` (garments and characters) and returns the sink;
+    /// `characters`: write the characters' frames too.
+    pub fn new(dir: PathBuf, meshes: &[MeshInfo], characters: bool) -> Result<ObjFrames> {
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, "cannot create", e))?;
+        let materials: Vec<(String, [f32; 3])> = meshes
+            .iter()
+            .filter(|m| m.role != Role::Collider)
+            .map(|m| (m.name.clone(), [m.colour[0], m.colour[1], m.colour[2]]))
+            .collect();
+        let library = write_materials(&dir, &materials)?;
+        Ok(ObjFrames {
+            dir,
+            meshes: meshes.to_vec(),
+            characters,
+            library,
+            written: Default::default(),
+        })
+    }
+}
+
+impl FrameSink for ObjFrames {
+    fn frame(&mut self, frame: &Frame) -> Result<()> {
+        for (m, positions) in self.meshes.iter().zip(&frame.positions) {
+            let files = match m.role {
+                Role::Garment => &mut self.written.0,
+                Role::Character if self.characters && !positions.is_empty() => &mut self.written.1,
+                _ => continue,
+            };
+            let path = self.dir.join(frame_file_name(&m.name, frame.number));
+            let text = frame_text(
+                &m.name,
+                frame.number,
+                positions,
+                &m.triangles,
+                m.uvs.as_deref(),
+            );
+            std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
+            files.push(path);
+        }
+        Ok(())
+    }
+
+    fn faces(&mut self, mesh: usize, _from: usize, triangles: &[[u32; 3]]) -> Result<()> {
+        self.meshes[mesh].triangles = triangles.to_vec();
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, frames: usize) -> Result<Vec<Written>> {
+        if frames == 0 {
+            let _ = std::fs::remove_file(&self.library);
+            return Ok(Vec::new());
+        }
+        let (garments, characters) = self.written;
+        let mut out = vec![
+            Written {
+                format: "obj",
+                files: garments,
+                warnings: Vec::new(),
+            },
+            Written {
+                format: "obj_materials",
+                files: vec![self.library],
+                warnings: Vec::new(),
+            },
+        ];
+        if self.characters && !characters.is_empty() {
+            out.push(Written {
+                format: "character_obj",
+                files: characters,
+                warnings: Vec::new(),
+            });
+        }
+        Ok(out)
+    }
 }
 
 /// Area-weighted vertex normals (unit length; +Y for a vertex with no area).

@@ -10,48 +10,77 @@
 //! range and rate, and one `Mesh` (or, for a rope, linear `BasisCurves`) per garment with
 //! `points.timeSamples` and `extent.timeSamples` keyed by frame number.
 
-use super::gltf::AnimatedMesh;
+use super::sink::{Frame, FrameSink, MeshInfo, Role, Written};
+use super::spool::Recorded;
 use crate::error::{Error, Result};
 use glam::Vec3;
 use std::fmt::Write as _;
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-/// The PC2 bytes of `frames` (every frame the same number of points), first frame numbered
-/// `start_frame`.
-pub fn pc2_bytes(frames: &[Vec<Vec3>], start_frame: f32) -> Vec<u8> {
-    let points = frames.first().map_or(0, Vec::len);
-    let mut out = Vec::with_capacity(32 + frames.len() * points * 12);
-    out.extend_from_slice(b"POINTCACHE2\0");
-    out.extend_from_slice(&1i32.to_le_bytes());
-    out.extend_from_slice(&(points as i32).to_le_bytes());
-    out.extend_from_slice(&start_frame.to_le_bytes());
-    out.extend_from_slice(&1.0f32.to_le_bytes());
-    out.extend_from_slice(&(frames.len() as i32).to_le_bytes());
-    for frame in frames {
-        for p in frame {
-            for c in p.to_array() {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-    }
-    out
+/// The PC2 header for `points` points per sample, `samples` samples from `start_frame`.
+pub fn pc2_header(points: usize, start_frame: f32, samples: usize) -> [u8; 32] {
+    let mut h = [0u8; 32];
+    h[..12].copy_from_slice(b"POINTCACHE2\0");
+    h[12..16].copy_from_slice(&1i32.to_le_bytes());
+    h[16..20].copy_from_slice(&(points as i32).to_le_bytes());
+    h[20..24].copy_from_slice(&start_frame.to_le_bytes());
+    h[24..28].copy_from_slice(&1.0f32.to_le_bytes());
+    h[28..32].copy_from_slice(&(samples as i32).to_le_bytes());
+    h
 }
 
-/// Writes `<name>.pc2` and `<name>_rest.obj` for each mesh into `dir` (frames numbered from
-/// `first_frame`); `rest` holds each mesh's rest positions.
-pub fn write_pc2(
-    dir: &Path,
-    meshes: &[AnimatedMesh],
-    rest: &[Vec<Vec3>],
-    first_frame: u32,
-) -> Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
-    for (mesh, rest) in meshes.iter().zip(rest) {
-        let path = dir.join(format!("{}.pc2", mesh.name));
-        std::fs::write(&path, pc2_bytes(&mesh.frames, first_frame as f32))
-            .map_err(|e| Error::io(&path, "cannot write", e))?;
-        written.push(path);
-        let path = dir.join(format!("{}_rest.obj", mesh.name));
+/// One garment's cache being written.
+struct Pc2Cache {
+    mesh: usize,
+    path: PathBuf,
+    out: BufWriter<File>,
+}
+
+/// Writes `pc2/<garment>.pc2` a frame at a time (the header's sample count is set at the end),
+/// and `pc2/<garment>_rest.obj` with the garment's faces at the end.
+pub struct Pc2Files {
+    dir: PathBuf,
+    meshes: Vec<MeshInfo>,
+    caches: Vec<Pc2Cache>,
+    /// Each garment's rest positions (export order).
+    rest: Vec<Vec<Vec3>>,
+}
+
+impl Pc2Files {
+    /// Starts a cache per garment of `meshes` in `dir` (created), frames numbered from
+    /// `first_frame`; `rest` holds each garment's rest positions, in garment order.
+    pub fn create(
+        dir: PathBuf,
+        meshes: &[MeshInfo],
+        rest: Vec<Vec<Vec3>>,
+        first_frame: u32,
+    ) -> Result<Pc2Files> {
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, "cannot create", e))?;
+        let mut caches = Vec::new();
+        for (i, m) in meshes.iter().enumerate() {
+            if m.role != Role::Garment {
+                continue;
+            }
+            let path = dir.join(format!("{}.pc2", m.name));
+            let io = |e| Error::io(&path, "cannot write", e);
+            let mut out = BufWriter::new(File::create(&path).map_err(io)?);
+            out.write_all(&pc2_header(m.vertices, first_frame as f32, 0))
+                .map_err(io)?;
+            caches.push(Pc2Cache { mesh: i, path, out });
+        }
+        Ok(Pc2Files {
+            dir,
+            meshes: meshes.to_vec(),
+            caches,
+            rest,
+        })
+    }
+
+    /// Writes `<name>_rest.obj`: the rest positions and the garment's (last) faces.
+    fn rest_obj(&self, mesh: &MeshInfo, rest: &[Vec3]) -> Result<PathBuf> {
+        let path = self.dir.join(format!("{}_rest.obj", mesh.name));
         let mut text = format!(
             "# drape rest mesh of {} (vertex order of {0}.pc2)\no {0}\n",
             mesh.name
@@ -71,9 +100,49 @@ pub fn write_pc2(
             let _ = writeln!(text, "f {a} {b} {c}");
         }
         std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
-        written.push(path);
+        Ok(path)
     }
-    Ok(written)
+}
+
+impl FrameSink for Pc2Files {
+    fn frame(&mut self, frame: &Frame) -> Result<()> {
+        for c in &mut self.caches {
+            c.out
+                .write_all(bytemuck::cast_slice(&frame.positions[c.mesh]))
+                .map_err(|e| Error::io(&c.path, "cannot write", e))?;
+        }
+        Ok(())
+    }
+
+    fn faces(&mut self, mesh: usize, _from: usize, triangles: &[[u32; 3]]) -> Result<()> {
+        self.meshes[mesh].triangles = triangles.to_vec();
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, frames: usize) -> Result<Vec<Written>> {
+        if frames == 0 {
+            drop(self.caches);
+            let _ = std::fs::remove_dir_all(&self.dir);
+            return Ok(Vec::new());
+        }
+        let mut files = Vec::new();
+        for (c, rest) in self.caches.iter().zip(&self.rest) {
+            files.push(self.rest_obj(&self.meshes[c.mesh], rest)?);
+        }
+        for c in self.caches {
+            let io = |e| Error::io(&c.path, "cannot write", e);
+            let mut file = c.out.into_inner().map_err(|e| io(e.into_error()))?;
+            file.seek(SeekFrom::Start(28))
+                .and_then(|_| file.write_all(&(frames as i32).to_le_bytes()))
+                .map_err(io)?;
+            files.push(c.path);
+        }
+        Ok(vec![Written {
+            format: "pc2",
+            files,
+            warnings: Vec::new(),
+        }])
+    }
 }
 
 /// A USD prim name: letters, digits and underscores, not starting with a digit.
@@ -99,115 +168,144 @@ fn points(out: &mut String, ps: &[Vec3]) {
     out.push(']');
 }
 
-/// The `.usda` text of `meshes` animated at `fps`, frames numbered from `first_frame`.
-pub fn usda_text(meshes: &[AnimatedMesh], fps: f32, first_frame: u32) -> String {
-    let frames = meshes.first().map_or(0, |m| m.frames.len());
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "#usda 1.0\n(\n    defaultPrim = \"bake\"\n    doc = \"drape {}\"\n    metersPerUnit = 1\n    upAxis = \"Y\"\n    startTimeCode = {first_frame}\n    endTimeCode = {}\n    timeCodesPerSecond = {fps}\n    framesPerSecond = {fps}\n)\n\ndef Xform \"bake\"\n{{",
-        env!("CARGO_PKG_VERSION"),
-        first_frame as usize + frames.max(1) - 1
-    );
-    let mut used = Vec::new();
-    for mesh in meshes {
-        let mut name = prim_name(&mesh.name);
-        while used.contains(&name) {
-            name.push('_');
-        }
-        used.push(name.clone());
-        let curves = mesh.triangles.is_empty();
-        let _ = writeln!(
-            s,
-            "    def {} \"{name}\"\n    {{",
-            if curves { "BasisCurves" } else { "Mesh" }
-        );
-        if curves {
-            let n = mesh.frames.first().map_or(0, Vec::len);
-            let _ = writeln!(
-                s,
-                "        uniform token type = \"linear\"\n        int[] curveVertexCounts = [{n}]"
-            );
-        } else {
-            let counts = vec!["3"; mesh.triangles.len()].join(", ");
-            let indices: Vec<String> = mesh
-                .triangles
-                .iter()
-                .flatten()
-                .map(|i| i.to_string())
-                .collect();
-            let _ = writeln!(s, "        int[] faceVertexCounts = [{counts}]");
-            let _ = writeln!(
-                s,
-                "        int[] faceVertexIndices = [{}]",
-                indices.join(", ")
-            );
-            s.push_str("        uniform token subdivisionScheme = \"none\"\n        uniform bool doubleSided = 1\n");
-        }
-        let [r, g, b, _] = mesh.colour;
-        let _ = writeln!(
-            s,
-            "        color3f[] primvars:displayColor = [({r}, {g}, {b})]"
-        );
-        if let Some(first) = mesh.frames.first() {
-            s.push_str("        point3f[] points = ");
-            points(&mut s, first);
-            s.push('\n');
-        }
-        // Texture coordinates and smooth normals per vertex, so a textured, shaded garment
-        // renders from the layer alone (the normals follow every frame).
-        if let (Some(uvs), false) = (&mesh.uvs, curves) {
-            s.push_str("        texCoord2f[] primvars:st = [");
-            for (i, [u, v]) in uvs.iter().enumerate() {
-                if i > 0 {
-                    s.push_str(", ");
-                }
-                let _ = write!(s, "({u}, {v})");
-            }
-            s.push_str("] (\n            interpolation = \"vertex\"\n        )\n");
-        }
-        if !curves {
-            s.push_str("        normal3f[] primvars:normals (\n            interpolation = \"vertex\"\n        )\n");
-            s.push_str("        normal3f[] primvars:normals.timeSamples = {\n");
-            for (k, frame) in mesh.frames.iter().enumerate() {
-                let _ = write!(s, "            {}: ", first_frame as usize + k);
-                points(&mut s, &super::obj::vertex_normals(&mesh.triangles, frame));
-                s.push_str(",\n");
-            }
-            s.push_str("        }\n");
-        }
-        s.push_str("        point3f[] points.timeSamples = {\n");
-        for (k, frame) in mesh.frames.iter().enumerate() {
-            let _ = write!(s, "            {}: ", first_frame as usize + k);
-            points(&mut s, frame);
-            s.push_str(",\n");
-        }
-        s.push_str("        }\n        float3[] extent.timeSamples = {\n");
-        for (k, frame) in mesh.frames.iter().enumerate() {
-            let (lo, hi) = frame.iter().fold(
-                (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-            );
-            let _ = write!(s, "            {}: ", first_frame as usize + k);
-            points(&mut s, &[lo, hi]);
-            s.push_str(",\n");
-        }
-        s.push_str("        }\n    }\n");
-    }
-    s.push_str("}\n");
-    s
-}
-
-/// Writes `<stem>.usda` into `dir`, frames numbered from `first_frame`.
+/// Writes `<stem>.usda` into `dir` from the spooled frames, frames numbered from
+/// `first_frame`: a mesh at a time, each attribute's samples read back a frame at a time.
 pub fn write_usda(
     dir: &Path,
     stem: &str,
-    meshes: &[AnimatedMesh],
+    recorded: &mut Recorded,
     fps: f32,
     first_frame: u32,
 ) -> Result<PathBuf> {
     let path = dir.join(format!("{stem}.usda"));
-    std::fs::write(&path, usda_text(meshes, fps, first_frame))
-        .map_err(|e| Error::io(&path, "cannot write", e))?;
+    let io = |e| Error::io(&path, "cannot write", e);
+    let mut out = BufWriter::new(File::create(&path).map_err(io)?);
+    let frames = recorded.frames;
+    write!(
+        out,
+        "#usda 1.0\n(\n    defaultPrim = \"bake\"\n    doc = \"drape {}\"\n    metersPerUnit = 1\n    upAxis = \"Y\"\n    startTimeCode = {first_frame}\n    endTimeCode = {}\n    timeCodesPerSecond = {fps}\n    framesPerSecond = {fps}\n)\n\ndef Xform \"bake\"\n{{\n",
+        env!("CARGO_PKG_VERSION"),
+        first_frame as usize + frames.max(1) - 1
+    )
+    .map_err(io)?;
+    let mut used = Vec::new();
+    for m in 0..recorded.meshes.len() {
+        let mut name = prim_name(&recorded.meshes[m].name);
+        while used.contains(&name) {
+            name.push('_');
+        }
+        used.push(name.clone());
+        usd_mesh(&mut out, recorded, m, &name, first_frame).map_err(|e| match e {
+            UsdError::Write(e) => io(e),
+            UsdError::Read(e) => e,
+        })?;
+    }
+    out.write_all(b"}\n").map_err(io)?;
+    out.into_inner().map_err(|e| io(e.into_error()))?;
     Ok(path)
+}
+
+/// Why a USD mesh could not be written: the layer, or the spool it is read from.
+enum UsdError {
+    Write(std::io::Error),
+    Read(Error),
+}
+
+impl From<std::io::Error> for UsdError {
+    fn from(e: std::io::Error) -> Self {
+        UsdError::Write(e)
+    }
+}
+
+/// Writes one mesh's prim: faces (the last), colour, UVs, and the time-sampled normals, points
+/// and extents.
+fn usd_mesh(
+    out: &mut impl Write,
+    recorded: &mut Recorded,
+    m: usize,
+    name: &str,
+    first_frame: u32,
+) -> std::result::Result<(), UsdError> {
+    let mesh = recorded.meshes[m].clone();
+    let triangles = recorded.last_triangles(m).to_vec();
+    let curves = triangles.is_empty();
+    let mut s = format!(
+        "    def {} \"{name}\"\n    {{\n",
+        if curves { "BasisCurves" } else { "Mesh" }
+    );
+    if curves {
+        let _ = writeln!(
+            s,
+            "        uniform token type = \"linear\"\n        int[] curveVertexCounts = [{}]",
+            mesh.vertices
+        );
+    } else {
+        let counts = vec!["3"; triangles.len()].join(", ");
+        let indices: Vec<String> = triangles.iter().flatten().map(|i| i.to_string()).collect();
+        let _ = writeln!(s, "        int[] faceVertexCounts = [{counts}]");
+        let _ = writeln!(
+            s,
+            "        int[] faceVertexIndices = [{}]",
+            indices.join(", ")
+        );
+        s.push_str("        uniform token subdivisionScheme = \"none\"\n        uniform bool doubleSided = 1\n");
+    }
+    let [r, g, b, _] = mesh.colour;
+    let _ = writeln!(
+        s,
+        "        color3f[] primvars:displayColor = [({r}, {g}, {b})]"
+    );
+    let frames = if mesh.animated { recorded.frames } else { 1 };
+    let first = recorded.positions(m, 0).map_err(UsdError::Read)?;
+    s.push_str("        point3f[] points = ");
+    points(&mut s, &first);
+    s.push('\n');
+    // Texture coordinates and smooth normals per vertex, so a textured, shaded garment
+    // renders from the layer alone (the normals follow every frame).
+    if let (Some(uvs), false) = (&mesh.uvs, curves) {
+        s.push_str("        texCoord2f[] primvars:st = [");
+        for (i, [u, v]) in uvs.iter().enumerate() {
+            if i > 0 {
+                s.push_str(", ");
+            }
+            let _ = write!(s, "({u}, {v})");
+        }
+        s.push_str("] (\n            interpolation = \"vertex\"\n        )\n");
+    }
+    out.write_all(s.as_bytes())?;
+    // One block of samples per attribute, each frame read back in turn.
+    let mut samples = |out: &mut dyn Write,
+                       head: &str,
+                       value: &dyn Fn(&[Vec3]) -> Vec<Vec3>|
+     -> std::result::Result<(), UsdError> {
+        out.write_all(head.as_bytes())?;
+        for k in 0..frames {
+            let frame = recorded.positions(m, k).map_err(UsdError::Read)?;
+            let mut line = format!("            {}: ", first_frame as usize + k);
+            points(&mut line, &value(&frame));
+            line.push_str(",\n");
+            out.write_all(line.as_bytes())?;
+        }
+        out.write_all(b"        }\n")?;
+        Ok(())
+    };
+    if !curves {
+        samples(
+            out,
+            "        normal3f[] primvars:normals (\n            interpolation = \"vertex\"\n        )\n        normal3f[] primvars:normals.timeSamples = {\n",
+            &|f| super::obj::vertex_normals(&triangles, f),
+        )?;
+    }
+    samples(out, "        point3f[] points.timeSamples = {\n", &|f| {
+        f.to_vec()
+    })?;
+    samples(out, "        float3[] extent.timeSamples = {\n", &|f| {
+        let (lo, hi) = f.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        vec![lo, hi]
+    })?;
+    out.write_all(b"    }\n")?;
+    Ok(())
 }

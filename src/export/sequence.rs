@@ -1,45 +1,41 @@
-//! The exports written once the simulation is done, from the frames a bake recorded: glTF, PC2
-//! caches with rest meshes, USD, and the characters' OBJ frames; each timed and measured for the
-//! report.
+//! What a bake shows, frame by frame: its garments, characters and analytic colliders as
+//! meshes ([`BakeMeshes`]), each frame made into a [`Frame`] for the sinks. Also the welding of
+//! imported meshes and the collider shapes' meshes.
 
-use super::gltf::{self, AnimatedMesh, Container};
-use super::{obj, pointcache};
-use crate::error::{Error, Result};
-use crate::report::{ExportReport, Outputs};
-use crate::scene::{ColliderKind, ColliderSpec, GltfOutput, OutputSpec};
+use super::gltf::AnimatedMesh;
+use super::sink::{Frame, MeshInfo, Role};
+use crate::scene::{ColliderKind, ColliderSpec};
+use crate::sim::attach::Track;
 use crate::sim::model::GarmentRange;
 use glam::Vec3;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// Colour of characters in exports and previews (linear RGB).
 pub const CHARACTER_COLOUR: [f32; 3] = [0.72, 0.66, 0.60];
 
-/// One animated mesh per garment from per-frame positions in export order.
-pub fn garment_meshes(garments: &[GarmentRange], frames: &[Vec<Vec3>]) -> Vec<AnimatedMesh> {
-    garments
-        .iter()
-        .map(|g| AnimatedMesh {
-            name: g.name.clone(),
-            triangles: g.triangles.clone(),
-            uvs: Some(g.uvs.clone()),
-            colour: [g.colour[0], g.colour[1], g.colour[2], 1.0],
-            frames: frames
-                .iter()
-                .map(|f| g.surface(&f[g.export.clone()]))
-                .collect(),
-            topology: Vec::new(),
-        })
-        .collect()
-}
-
 /// Colour of analytic colliders in exports and previews (linear RGB).
 pub const COLLIDER_COLOUR: [f32; 3] = [0.45, 0.47, 0.52];
 
-/// Meshes of the scene's sphere, box, capsule, funnel and wedge colliders, so exports and previews show what
-/// the cloth meets: one frame for a static collider, one per time in `times` [s] for a keyframed
-/// one. Planes are left out: the preview's floor stands for them.
-pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<AnimatedMesh> {
+/// A collider's mesh at its start, and how keyframes move it.
+pub struct ColliderMesh {
+    pub mesh: AnimatedMesh,
+    pub track: Option<Track>,
+}
+
+impl ColliderMesh {
+    /// The mesh's vertices at time `t` [s].
+    pub fn at(&self, t: f32) -> Vec<Vec3> {
+        let rest = &self.mesh.frames[0];
+        match &self.track {
+            Some(track) => rest.iter().map(|p| track.apply(*p, t)).collect(),
+            None => rest.clone(),
+        }
+    }
+}
+
+/// Meshes of the scene's sphere, box, capsule, funnel and wedge colliders, so exports and
+/// previews show what the cloth meets (one frame: where it starts). Planes are left out: the
+/// preview's floor stands for them.
+pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<ColliderMesh> {
     colliders
         .iter()
         .enumerate()
@@ -71,17 +67,11 @@ pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<Animate
                 }
                 ColliderKind::Funnel => frustum(v(c.center)?, c.radius?, c.top_radius?, c.height?),
             };
-            let frames = if c.keyframes.is_empty() {
-                vec![positions]
-            } else {
+            let track = (!c.keyframes.is_empty()).then(|| {
                 let pivot = crate::collide::Collider::from_spec(c).shape.centre();
-                let track = crate::sim::attach::Track::new(&c.keyframes, pivot);
-                times
-                    .iter()
-                    .map(|&t| positions.iter().map(|p| track.apply(*p, t)).collect())
-                    .collect()
-            };
-            Some(AnimatedMesh {
+                Track::new(&c.keyframes, pivot)
+            });
+            let mesh = AnimatedMesh {
                 name: format!("collider{i}"),
                 triangles,
                 uvs: None,
@@ -91,9 +81,10 @@ pub fn collider_meshes(colliders: &[ColliderSpec], times: &[f32]) -> Vec<Animate
                     COLLIDER_COLOUR[2],
                     1.0,
                 ],
-                frames,
+                frames: vec![positions],
                 topology: Vec::new(),
-            })
+            };
+            Some(ColliderMesh { mesh, track })
         })
         .collect()
 }
@@ -199,124 +190,124 @@ fn cuboid(centre: Vec3, half: Vec3) -> Mesh {
     (positions, triangles)
 }
 
-/// Total size of `files` [bytes].
-fn size_of(files: &[PathBuf]) -> u64 {
-    files
-        .iter()
-        .filter_map(|f| std::fs::metadata(f).ok())
-        .map(|m| m.len())
-        .sum()
+/// Everything a bake shows, in the order of its sinks' meshes: garments, characters,
+/// colliders.
+pub struct BakeMeshes {
+    pub info: Vec<MeshInfo>,
+    garments: Vec<GarmentRange>,
+    /// Characters' meshes over frames 0…N (frame 0: the start; one frame: static).
+    characters: Vec<AnimatedMesh>,
+    colliders: Vec<ColliderMesh>,
+    fps: f32,
 }
 
-/// What [`write_exports`] writes from.
-pub struct Recording<'a> {
-    /// The garments followed by the characters, every frame (empty when only OBJ frames were
-    /// asked for: nothing else needs them).
-    pub meshes: &'a [AnimatedMesh],
-    /// How many of `meshes` are garments, and how many characters follow them (colliders come
-    /// last).
-    pub garments: usize,
-    pub characters: usize,
-    /// Each garment's rest positions (the PC2 rest meshes).
-    pub rest: &'a [Vec<Vec3>],
-    /// Name and colour of every garment and character (the OBJ material library).
-    pub materials: &'a [(String, [f32; 3])],
-    pub fps: f32,
-    /// The shot's number of the first frame (`frame_start`).
-    pub first_frame: u32,
-}
-
-/// Writes the exports `spec` asks for into `dir`, named after `stem`.
-pub fn write_exports(
-    dir: &Path,
-    stem: &str,
-    spec: &OutputSpec,
-    recording: &Recording,
-) -> Result<(Outputs, Vec<ExportReport>)> {
-    let (meshes, garments, rest, fps) = (
-        recording.meshes,
-        recording.garments,
-        recording.rest,
-        recording.fps,
-    );
-    let mut outputs = Outputs {
-        obj: spec.obj.then(|| "obj".to_string()),
-        ..Outputs::default()
-    };
-    let mut reports = Vec::new();
-    let mut timed = |format: &'static str, write: &mut dyn FnMut() -> Result<Vec<PathBuf>>| {
-        let start = Instant::now();
-        let files = write()?;
-        reports.push(ExportReport {
-            format,
-            files: files.len(),
-            bytes: size_of(&files),
-            ms: start.elapsed().as_secs_f64() * 1e3,
-        });
-        Ok::<_, Error>(files)
-    };
-    if spec.gltf != GltfOutput::None {
-        let container = match spec.gltf {
-            GltfOutput::Gltf => Container::Separate,
-            _ => Container::Binary,
+impl BakeMeshes {
+    /// The meshes of `garments`, `characters` (those with a frame for every baked frame, or
+    /// static) and the colliders, for a bake of `frames` frames at `fps`.
+    pub fn new(
+        garments: &[GarmentRange],
+        characters: Vec<AnimatedMesh>,
+        colliders: &[ColliderSpec],
+        frames: usize,
+        fps: f32,
+    ) -> BakeMeshes {
+        let characters: Vec<AnimatedMesh> = characters
+            .into_iter()
+            .filter(|c| c.frames.len() == 1 || c.frames.len() > frames)
+            .collect();
+        let colliders = collider_meshes(colliders);
+        let mut info: Vec<MeshInfo> = garments
+            .iter()
+            .map(|g| MeshInfo {
+                name: g.name.clone(),
+                role: Role::Garment,
+                triangles: g.triangles.clone(),
+                uvs: Some(g.uvs.clone()),
+                colour: [g.colour[0], g.colour[1], g.colour[2], 1.0],
+                vertices: g.surface(&vec![Vec3::ZERO; g.export.len()]).len(),
+                animated: true,
+            })
+            .collect();
+        let shown = |m: &AnimatedMesh, role, animated| MeshInfo {
+            name: m.name.clone(),
+            role,
+            triangles: m.triangles.clone(),
+            uvs: m.uvs.clone(),
+            colour: m.colour,
+            vertices: m.frames[0].len(),
+            animated,
         };
-        let files = timed("gltf", &mut || {
-            gltf::write(dir, stem, meshes, fps, container)
-        })?;
-        outputs.gltf = files
-            .first()
-            .and_then(|f| f.file_name())
-            .map(|f| f.to_string_lossy().into_owned());
-    }
-    if spec.pc2 {
-        let folder = dir.join("pc2");
-        std::fs::create_dir(&folder).map_err(|e| Error::io(&folder, "cannot create", e))?;
-        timed("pc2", &mut || {
-            pointcache::write_pc2(&folder, &meshes[..garments], rest, recording.first_frame)
-        })?;
-        outputs.pc2 = Some("pc2".into());
-    }
-    if spec.usd {
-        let files = timed("usd", &mut || {
-            Ok(vec![pointcache::write_usda(
-                dir,
-                stem,
-                meshes,
-                fps,
-                recording.first_frame,
-            )?])
-        })?;
-        outputs.usd = files
-            .first()
-            .and_then(|f| f.file_name())
-            .map(|f| f.to_string_lossy().into_owned());
-    }
-    if spec.obj {
-        let folder = dir.join("obj");
-        timed("obj_materials", &mut || {
-            Ok(vec![obj::write_materials(&folder, recording.materials)?])
-        })?;
-        let characters = &meshes
-            [garments.min(meshes.len())..(garments + recording.characters).min(meshes.len())];
-        if spec.character_obj && !characters.is_empty() {
-            timed("character_obj", &mut || {
-                let mut files = Vec::new();
-                for m in characters {
-                    for (k, frame) in m.frames.iter().enumerate() {
-                        files.push(obj::write_mesh_frame(
-                            &folder,
-                            &m.name,
-                            recording.first_frame + k as u32,
-                            frame,
-                            &m.triangles,
-                        )?);
-                    }
-                }
-                Ok(files)
-            })?;
+        info.extend(
+            characters
+                .iter()
+                .map(|c| shown(c, Role::Character, c.frames.len() > 1)),
+        );
+        info.extend(
+            colliders
+                .iter()
+                .map(|c| shown(&c.mesh, Role::Collider, c.track.is_some())),
+        );
+        BakeMeshes {
+            info,
+            garments: garments.to_vec(),
+            characters,
+            colliders,
+            fps,
         }
     }
-    Ok((outputs, reports))
+
+    /// Baked frame `index` (shot frame `number`) from the garments' particles (export order).
+    pub fn frame(&self, index: usize, number: u32, particles: &[Vec3]) -> Frame {
+        let first = index == 0;
+        let mut positions: Vec<Vec<Vec3>> = self
+            .garments
+            .iter()
+            .map(|g| g.surface(&particles[g.export.clone()]))
+            .collect();
+        // Character frame k + 1 is the pose at baked frame k (frame 0 is the start).
+        positions.extend(self.characters.iter().map(|c| match c.frames.len() {
+            1 if first => c.frames[0].clone(),
+            1 => Vec::new(),
+            _ => c.frames[index + 1].clone(),
+        }));
+        // Baked frame k is at time (k + 1) / fps.
+        let t = (index + 1) as f32 / self.fps;
+        positions.extend(self.colliders.iter().map(|c| match c.track {
+            Some(_) => c.at(t),
+            None if first => c.mesh.frames[0].clone(),
+            None => Vec::new(),
+        }));
+        Frame {
+            index,
+            number,
+            positions,
+        }
+    }
+
+    /// Each garment's surface from the particles (export order), in garment order.
+    pub fn garment_surfaces(&self, particles: &[Vec3]) -> Vec<Vec<Vec3>> {
+        self.garments
+            .iter()
+            .map(|g| g.surface(&particles[g.export.clone()]))
+            .collect()
+    }
+
+    /// The garments' faces, in garment order.
+    pub fn garment_faces(&self) -> impl Iterator<Item = &[[u32; 3]]> {
+        self.garments.iter().map(|g| &g.triangles[..])
+    }
+
+    /// Takes the garments' faces after tearing; returns the garments whose faces changed.
+    pub fn tear(&mut self, garments: &[GarmentRange]) -> Vec<usize> {
+        let mut changed = Vec::new();
+        for (i, (old, new)) in self.garments.iter_mut().zip(garments).enumerate() {
+            if old.triangles != new.triangles {
+                old.triangles = new.triangles.clone();
+                changed.push(i);
+            }
+        }
+        changed
+    }
 }
 
 /// An indexed mesh: vertices that sit at the same place on every frame become one, and faces

@@ -15,6 +15,7 @@ pub mod tube;
 use crate::error::{Error, Result};
 use crate::export::gltf::AnimatedMesh;
 use crate::export::obj::vertex_normals;
+use crate::export::spool::Recorded;
 use crate::gpu::GpuContext;
 use camera::View;
 use glam::Vec3;
@@ -78,8 +79,6 @@ struct MeshBuffers {
     triangles: Option<(wgpu::Buffer, u32)>,
     edges: Option<(wgpu::Buffer, u32)>,
     vertex_count: u32,
-    /// Topology changes (tearing) applied so far, see `AnimatedMesh::topology`.
-    topology_applied: usize,
 }
 
 /// An off-screen renderer for one sequence of meshes.
@@ -149,17 +148,26 @@ impl Renderer {
         meshes: &[AnimatedMesh],
         options: RenderOptions,
     ) -> Result<Renderer> {
+        Renderer::framing(ctx, meshes, bounds(meshes), options)
+    }
+
+    /// Prepares buffers and pipelines for `meshes` (their first frame) and a camera that frames
+    /// the box `bounds` (every vertex the sequence draws).
+    pub fn framing(
+        ctx: GpuContext,
+        meshes: &[AnimatedMesh],
+        bounds: Option<(Vec3, Vec3)>,
+        options: RenderOptions,
+    ) -> Result<Renderer> {
         let drawable = meshes
             .iter()
             .any(|m| m.frames.first().is_some_and(|f| !f.is_empty()));
-        let (lo, hi) =
-            bounds(meshes)
-                .filter(|_| drawable)
-                .ok_or_else(|| Error::InvalidArgument {
-                    flag: "render".into(),
-                    reason: "nothing to render: the bake has no garment or character vertices"
-                        .into(),
-                })?;
+        let (lo, hi) = bounds
+            .filter(|_| drawable)
+            .ok_or_else(|| Error::InvalidArgument {
+                flag: "render".into(),
+                reason: "nothing to render: the bake has no garment or character vertices".into(),
+            })?;
         if options.width == 0
             || options.height == 0
             || options.width > 8192
@@ -249,22 +257,34 @@ impl Renderer {
 
     /// Renders frame `k` of `meshes` (the meshes the renderer was built for) to an RGBA image.
     pub fn render(&mut self, meshes: &[AnimatedMesh], k: usize) -> Result<image::RgbaImage> {
+        self.upload(meshes, k);
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("preview frame"),
+            });
+        self.shadow_pass(&mut encoder);
+        self.image_pass(&mut encoder);
+        self.read_back(encoder, k)
+    }
+
+    /// Writes frame `k`'s vertices (and its faces, when tearing changed them) to the GPU.
+    fn upload(&mut self, meshes: &[AnimatedMesh], k: usize) {
         let queue = &self.ctx.queue;
         for (m, gpu) in meshes.iter().zip(self.meshes.iter_mut()) {
             let frame = &m.frames[k.min(m.frames.len() - 1)];
             let triangles = m.triangles_at(k);
-            let applied = m.topology.iter().filter(|(f, _)| *f <= k).count();
-            if applied != gpu.topology_applied {
-                // The faces changed (tearing): fewer of them from this frame on.
-                gpu.topology_applied = applied;
-                if let Some((buffer, count)) = &mut gpu.triangles {
+            if let Some((buffer, count)) = &mut gpu.triangles {
+                // Tearing only removes faces: a different count is different faces.
+                if *count != triangles.len() as u32 * 3 {
                     queue.write_buffer(buffer, 0, bytemuck::cast_slice(triangles));
                     *count = triangles.len() as u32 * 3;
-                }
-                if let Some((buffer, count)) = &mut gpu.edges {
-                    let e = edges(triangles);
-                    queue.write_buffer(buffer, 0, bytemuck::cast_slice(&e));
-                    *count = e.len() as u32;
+                    if let Some((buffer, count)) = &mut gpu.edges {
+                        let e = edges(triangles);
+                        queue.write_buffer(buffer, 0, bytemuck::cast_slice(&e));
+                        *count = e.len() as u32;
+                    }
                 }
             }
             queue.write_buffer(
@@ -273,97 +293,99 @@ impl Renderer {
                 bytemuck::cast_slice(&interleave(frame, triangles)),
             );
         }
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("preview frame"),
-            });
-        let all: Vec<(usize, &MeshBuffers)> = self
-            .meshes
+    }
+
+    /// Every mesh, then the floor, with its draw slot.
+    fn drawn(&self) -> impl Iterator<Item = (usize, &MeshBuffers)> {
+        self.meshes
             .iter()
             .enumerate()
             .chain(std::iter::once((self.meshes.len(), &self.floor)))
-            .collect();
-        {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("shadow"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.targets.shadow_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
+    }
+
+    /// The key light's shadow map.
+    fn shadow_pass(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("shadow"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.targets.shadow_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
                 }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipelines.shadow_pipeline);
-            pass.set_bind_group(0, &self.pipelines.shadow_group, &[]);
-            for (_, m) in &all {
-                if let Some((indices, count)) = &m.triangles {
-                    pass.set_vertex_buffer(0, m.vertices.slice(..));
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipelines.shadow_pipeline);
+        pass.set_bind_group(0, &self.pipelines.shadow_group, &[]);
+        for (_, m) in self.drawn() {
+            if let Some((indices, count)) = &m.triangles {
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*count, 0, 0..1);
+            }
+        }
+    }
+
+    /// The shaded image: surfaces (or rope strips), then the wireframe over them.
+    fn image_pass(&self, encoder: &mut wgpu::CommandEncoder) {
+        let resolve = self.targets.resolved.create_view(&Default::default());
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("image"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.targets.msaa_view,
+                depth_slice: None,
+                resolve_target: Some(&resolve),
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(CLEAR),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.targets.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let p = &self.pipelines;
+        pass.set_bind_group(0, &p.main_group, &[]);
+        let slot = |i: usize| [(i as u64 * DRAW_SLOT) as u32];
+        for (i, m) in self.drawn() {
+            pass.set_vertex_buffer(0, m.vertices.slice(..));
+            pass.set_bind_group(1, &p.draw_group, &slot(i));
+            match &m.triangles {
+                Some((indices, count)) => {
+                    pass.set_pipeline(&p.surface_pipeline);
                     pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(0..*count, 0, 0..1);
                 }
-            }
-        }
-        {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("image"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.targets.msaa_view,
-                    depth_slice: None,
-                    resolve_target: Some(&self.targets.resolved.create_view(&Default::default())),
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(CLEAR),
-                        store: wgpu::StoreOp::Discard,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.targets.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_bind_group(0, &self.pipelines.main_group, &[]);
-            let slot = |i: usize| [(i as u64 * DRAW_SLOT) as u32];
-            for (i, m) in &all {
-                pass.set_vertex_buffer(0, m.vertices.slice(..));
-                match &m.triangles {
-                    Some((indices, count)) => {
-                        pass.set_pipeline(&self.pipelines.surface_pipeline);
-                        pass.set_bind_group(1, &self.pipelines.draw_group, &slot(*i));
-                        pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
-                        pass.draw_indexed(0..*count, 0, 0..1);
-                    }
-                    None => {
-                        pass.set_pipeline(&self.pipelines.line_strip_pipeline);
-                        pass.set_bind_group(1, &self.pipelines.draw_group, &slot(*i));
-                        pass.draw(0..m.vertex_count, 0..1);
-                    }
-                }
-                if let Some((edges, count)) = &m.edges {
-                    pass.set_pipeline(&self.pipelines.line_list_pipeline);
-                    pass.set_bind_group(
-                        1,
-                        &self.pipelines.draw_group,
-                        &slot(self.meshes.len() + 1),
-                    );
-                    pass.set_index_buffer(edges.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..*count, 0, 0..1);
+                None => {
+                    pass.set_pipeline(&p.line_strip_pipeline);
+                    pass.draw(0..m.vertex_count, 0..1);
                 }
             }
+            if let Some((edges, count)) = &m.edges {
+                pass.set_pipeline(&p.line_list_pipeline);
+                pass.set_bind_group(1, &p.draw_group, &slot(self.meshes.len() + 1));
+                pass.set_index_buffer(edges.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*count, 0, 0..1);
+            }
         }
+    }
+
+    /// Copies the image out, submits `encoder` and reads the pixels back (frame `k`, for
+    /// errors). An image of one flat colour drew nothing: an error, not a picture.
+    fn read_back(&self, mut encoder: wgpu::CommandEncoder, k: usize) -> Result<image::RgbaImage> {
         let (w, h) = (self.options.width, self.options.height);
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
@@ -393,7 +415,7 @@ impl Renderer {
             .ctx
             .device
             .push_error_scope(wgpu::ErrorFilter::Validation);
-        queue.submit([encoder.finish()]);
+        self.ctx.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(gpu_error(&e));
         }
@@ -417,7 +439,6 @@ impl Renderer {
         }
         self.targets.readback.unmap();
         let image = image::RgbaImage::from_raw(w, h, pixels).expect("width × height × 4 bytes");
-        // A render that came out as one flat colour drew nothing: say so instead of saving it.
         let first = *image.get_pixel(0, 0);
         if image.pixels().all(|p| *p == first) {
             return Err(Error::Gpu {
@@ -429,6 +450,79 @@ impl Renderer {
             });
         }
         Ok(image)
+    }
+}
+
+/// A sequence to render, a frame at a time.
+pub trait FrameSource {
+    /// How many frames.
+    fn frames(&self) -> usize;
+    /// The box of every vertex any frame draws (the camera frames it).
+    fn bounds(&self) -> Option<(Vec3, Vec3)>;
+    /// Every mesh at frame `k`, one frame each with that frame's faces.
+    fn meshes_at(&mut self, k: usize) -> Result<Vec<AnimatedMesh>>;
+}
+
+/// Meshes with every frame in memory (a glTF read back).
+pub struct InMemory<'a>(pub &'a [AnimatedMesh]);
+
+/// Mesh `m` at one frame: `positions` and `triangles`.
+fn at_frame(m: &AnimatedMesh, positions: Vec<Vec3>, triangles: &[[u32; 3]]) -> AnimatedMesh {
+    AnimatedMesh {
+        name: m.name.clone(),
+        triangles: triangles.to_vec(),
+        uvs: None,
+        colour: m.colour,
+        frames: vec![positions],
+        topology: Vec::new(),
+    }
+}
+
+impl FrameSource for InMemory<'_> {
+    fn frames(&self) -> usize {
+        self.0.iter().map(|m| m.frames.len()).max().unwrap_or(0)
+    }
+
+    fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        bounds(self.0)
+    }
+
+    fn meshes_at(&mut self, k: usize) -> Result<Vec<AnimatedMesh>> {
+        Ok(self
+            .0
+            .iter()
+            .map(|m| {
+                let frame = m.frames[k.min(m.frames.len() - 1)].clone();
+                at_frame(m, frame, m.triangles_at(k))
+            })
+            .collect())
+    }
+}
+
+impl FrameSource for Recorded {
+    fn frames(&self) -> usize {
+        self.frames
+    }
+
+    fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        self.bounds
+    }
+
+    fn meshes_at(&mut self, k: usize) -> Result<Vec<AnimatedMesh>> {
+        (0..self.meshes.len())
+            .map(|m| {
+                let positions = self.positions(m, k)?;
+                let info = &self.meshes[m];
+                Ok(AnimatedMesh {
+                    name: info.name.clone(),
+                    triangles: self.triangles_at(m, k).to_vec(),
+                    uvs: None,
+                    colour: info.colour,
+                    frames: vec![positions],
+                    topology: Vec::new(),
+                })
+            })
+            .collect()
     }
 }
 
@@ -445,27 +539,34 @@ pub struct RenderSummary {
     pub contact_sheet: String,
 }
 
-/// Renders every frame of `meshes` into `dir/preview/frame_<first_frame>.png …` (the shot's
-/// frame numbers, four digits at least) plus `dir/preview/contact_sheet.png`.
+/// Renders every frame of `source` into `dir/preview/frame_<first_frame>.png …` (the shot's
+/// frame numbers, four digits at least) plus `dir/preview/contact_sheet.png`, holding one
+/// frame at a time.
 pub fn render_sequence(
     ctx: GpuContext,
-    meshes: &[AnimatedMesh],
+    source: &mut dyn FrameSource,
     options: RenderOptions,
     dir: &Path,
     first_frame: u32,
 ) -> Result<RenderSummary> {
     let adapter = ctx.describe();
-    let diagonal = bounds(meshes).map_or(1.0, |(lo, hi)| (hi - lo).length());
-    let meshes = &tube::ropes_as_tubes(meshes, tube::RADIUS_OF_DIAGONAL * diagonal);
-    let mut renderer = Renderer::new(ctx, meshes, options)?;
+    let bounds = source.bounds();
+    let diagonal = bounds.map_or(1.0, |(lo, hi)| (hi - lo).length());
+    let radius = tube::RADIUS_OF_DIAGONAL * diagonal;
+    let frames = source.frames();
+    let first = tube::ropes_as_tubes(&source.meshes_at(0)?, radius);
+    let mut renderer = Renderer::framing(ctx, &first, bounds, options)?;
     let preview = dir.join("preview");
     std::fs::create_dir_all(&preview).map_err(|e| Error::io(&preview, "cannot create", e))?;
-    let frames = meshes.iter().map(|m| m.frames.len()).max().unwrap_or(0);
     let picks = sheet::picks(frames, sheet::THUMBNAILS);
     let mut thumbnails = Vec::new();
     let start = std::time::Instant::now();
     for k in 0..frames {
-        let image = renderer.render(meshes, k)?;
+        let meshes = match k {
+            0 => first.clone(),
+            _ => tube::ropes_as_tubes(&source.meshes_at(k)?, radius),
+        };
+        let image = renderer.render(&meshes, k)?;
         let path = preview.join(format!("frame_{:04}.png", first_frame as usize + k));
         save_png(&image, &path)?;
         if picks.contains(&k) {

@@ -117,7 +117,6 @@ impl MeshBuffers {
                 )
             }),
             vertex_count: m.frames[0].len() as u32,
-            topology_applied: m.topology.iter().filter(|(f, _)| *f == 0).count(),
         }
     }
 }
