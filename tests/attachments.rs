@@ -161,7 +161,9 @@ fn particles_near_a_point_are_selected_by_distance() {
              "particles": { "near": [-0.5, 1, -0.5], "radius": 0.15 },
              "keyframes": [{ "time": 0 }] }] }] }"#,
     );
-    let g = drape::garment::build_all(&scene).remove(0);
+    let g = drape::garment::build_all(&scene, "scene")
+        .unwrap()
+        .remove(0);
     assert_eq!(g.attached[0], vec![0, 1, 11, 12]);
     assert_eq!(g.pins, vec![0, 1, 11, 12]);
 }

@@ -131,3 +131,29 @@ fn the_preview_shader_validates_and_has_its_entry_points() {
         );
     }
 }
+
+#[test]
+fn bind_groups_bind_every_buffer_where_the_shaders_declare_it() {
+    use drape::gpu::buffers::BINDINGS;
+    let mut seen = 0;
+    for (file, _, _) in KERNEL_FILES {
+        let (module, _) = module(file);
+        for (_, var) in module.global_variables.iter() {
+            let Some(b) = &var.binding else { continue };
+            let name = var.name.as_deref().unwrap_or("");
+            let expected = BINDINGS
+                .get(b.group as usize)
+                .and_then(|g| g.get(b.binding as usize));
+            assert_eq!(
+                expected,
+                Some(&name),
+                "{file}: @group({}) @binding({}) is {name}, src/gpu/buffers.rs binds {expected:?} there",
+                b.group,
+                b.binding
+            );
+            seen += 1;
+        }
+    }
+    let total: usize = BINDINGS.iter().map(|g| g.len()).sum();
+    assert!(seen >= total, "every binding declared somewhere");
+}

@@ -33,7 +33,9 @@ fn mesh_scene(extra: &str) -> Scene {
 }
 
 fn garment(scene: &Scene) -> Garment {
-    drape::garment::build_all(scene).remove(0)
+    drape::garment::build_all(scene, "<test scene>")
+        .unwrap_or_else(|e| panic!("{e}"))
+        .remove(0)
 }
 
 /// (x/a)² + (y/b)² + (z/c)² of a point relative to the cushion's centre, for radii grown by `by`.
@@ -45,7 +47,7 @@ fn ellipsoid(p: Vec3, by: f32) -> f32 {
 #[test]
 fn a_closed_mesh_is_filled_and_only_its_inside() {
     let scene = mesh_scene("");
-    let placed = scene.garments[0].placed.clone().expect("placed");
+    let placed = garment(&scene).source.expect("placed");
     assert!(placed.closed, "the ellipsoid is a closed mesh");
     let v = &placed.voxels;
     assert!(v.interior_cells > 0 && v.surface_cells > 0);
@@ -78,7 +80,8 @@ fn a_closed_mesh_is_filled_and_only_its_inside() {
 
     // The same mesh as a surface only: hollow.
     let hollow = mesh_scene(r#", "fill": "surface""#);
-    let h = &hollow.garments[0].placed.as_ref().unwrap().voxels;
+    let hollow_mesh = garment(&hollow).source.unwrap();
+    let h = &hollow_mesh.voxels;
     assert_eq!(h.interior_cells, 0);
     assert_eq!(garment(&hollow).particle_count(), h.surface_cells);
     let middle = drape::garment::index_of(h.dims, h.dims.map(|n| n / 2)) as usize;
@@ -180,8 +183,8 @@ fn colours_alternate_on_a_voxel_block() {
 #[test]
 fn the_exported_surface_is_the_mesh_carried_by_the_particles() {
     let scene = mesh_scene("");
-    let placed = scene.garments[0].placed.clone().unwrap();
     let g = garment(&scene);
+    let placed = g.source.clone().unwrap();
     let embedding = g
         .embedding
         .clone()

@@ -86,7 +86,6 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         .filter(|&n| n > cores)
         .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
-    check_resources(scene, &options.scene_file, &options.out)?;
     let staging = Staging::new(&options.out)?;
     let written = pool
         .install(|| run(scene, options, staging.path(), pool.current_num_threads()))
@@ -107,35 +106,22 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
     })
 }
 
-/// Refuses a bake whose report would not fit in this machine's memory or whose files would
-/// not fit on the disk that holds `out` (exit 2 naming `frames`), before anything is written.
-/// Frames stream to disk as they are made, so memory holds one frame of every mesh and the
-/// report's per-frame entries.
-pub fn check_resources(scene: &Scene, file: &str, out: &Path) -> Result<()> {
-    let refuse = |reason: String| Error::InvalidField {
+/// Refuses a bake whose files would not fit on the disk that holds `out` (exit 2 naming
+/// `frames`), before the first frame; `vertices`: every mesh's vertices a frame writes. Frames
+/// stream to disk as they are made, so memory holds one frame of every mesh, and the disk is
+/// what a long shot fills.
+pub fn check_disk(scene: &Scene, vertices: u64, file: &str, out: &Path) -> Result<()> {
+    let bytes = output_bytes(scene, vertices);
+    crate::limits::fits_on_disk(bytes, out).map_err(|reason| Error::InvalidField {
         file: file.to_string(),
         field: "frames".into(),
         reason: format!("{} frames {reason}", scene.frames),
-    };
-    let frames = scene.frames as u64;
-    crate::limits::fits_in_memory(frames.saturating_mul(256)).map_err(refuse)?;
-    let bytes = output_bytes(scene);
-    crate::limits::fits_on_disk(bytes, out).map_err(refuse)
+    })
 }
 
-/// About how many bytes a bake of `scene` writes (its garments, without characters).
-fn output_bytes(scene: &Scene) -> u64 {
+/// About how many bytes a bake of `scene` writes with `vertices` vertices per frame.
+fn output_bytes(scene: &Scene, vertices: u64) -> u64 {
     let spec = &scene.output;
-    let vertices: u64 = scene
-        .garments
-        .iter()
-        .map(|g| match g.kind {
-            crate::scene::GarmentKind::Mesh => {
-                g.placed.as_ref().map_or(0, |p| p.vertices.len() as u64)
-            }
-            _ => g.resolution.iter().map(|&n| n as u64).product(),
-        })
-        .sum();
     let frames = scene.frames as u64;
     // Bytes per vertex and frame: OBJ text (v, vt, vn lines and about two faces), glTF
     // position and normal deltas, PC2 points, USD text (points, normals, extent), the spool.
@@ -150,10 +136,10 @@ fn output_bytes(scene: &Scene) -> u64 {
     } else {
         0
     };
-    // The glTF animation's weights: frames² floats per garment.
+    // The glTF animation's weights: frames² floats per animated mesh.
     let weights = if spec.gltf != GltfOutput::None {
-        (scene.garments.len() as u64)
-            .saturating_mul(frames.saturating_mul(frames).saturating_mul(4))
+        let meshes = scene.garments.len() + scene.characters.len();
+        (meshes as u64).saturating_mul(frames.saturating_mul(frames).saturating_mul(4))
     } else {
         0
     };
@@ -185,6 +171,8 @@ fn run(
         scene.frames as usize,
         scene.fps,
     );
+    let vertices = meshes.info.iter().map(|m| m.vertices as u64).sum();
+    check_disk(scene, vertices, &options.scene_file, &options.out)?;
     // While the GPU simulates the CPU is free to write; on the CPU a writer thread would only
     // take turns with the solver.
     let mut exports = output::Exports::open(scene, dir, &meshes, &rest, backend.is_gpu())?;

@@ -22,8 +22,7 @@ pub struct Prepared {
 /// Builds the complete simulation of a (validated) scene with its loaded characters; `file`
 /// names the scene in errors (an attachment that selects nothing, a skin that is not there).
 pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -> Result<Prepared> {
-    let garments = crate::garment::build_all(scene);
-    crate::garment::check_selections(scene, &garments, file)?;
+    let garments = crate::garment::build_all(scene, file)?;
     let mut sim = Simulation::from_garments(scene, &garments, scene.solver.clone());
     let mut reports = Vec::new();
     let mut character_meshes = Vec::new();

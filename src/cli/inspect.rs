@@ -17,9 +17,12 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         }
     }
     let (scene, file) = resolve::scene(&args.scene)?;
-    let garments = drape::garment::build_all(&scene);
-    drape::garment::check_selections(&scene, &garments, &file)?;
-    drape::bake::check_resources(&scene, &file, std::path::Path::new("."))?;
+    let garments = drape::garment::build_all(&scene, &file)?;
+    let vertices = garments
+        .iter()
+        .map(|g| g.uvs.len().max(g.particle_count()) as u64)
+        .sum();
+    drape::bake::check_disk(&scene, vertices, &file, std::path::Path::new("."))?;
     let model = Model::new(&garments);
     println!("scene '{}' ({file}): valid", scene.name);
     println!(
@@ -42,8 +45,8 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         s.contact_passes,
         if s.contact_passes == 1 { "" } else { "es" }
     );
-    for (spec, g) in scene.garments.iter().zip(&garments) {
-        if let Some(m) = &spec.placed {
+    for g in &garments {
+        if let Some(m) = &g.source {
             let v = &m.voxels;
             println!(
                 "  garment '{}' voxelizes {} ({} triangles, {}) at {} m: {} surface + {} interior cells",

@@ -60,13 +60,11 @@ pub struct Garment {
     pub colour: [f32; 3],
     /// The particles of each of the spec's attachments (grid-order indices; also pinned).
     pub attached: Vec<Vec<u32>>,
+    /// A mesh garment's mesh as placed and voxelized.
+    pub source: Option<Arc<voxel::PlacedMesh>>,
 }
 
-/// Named regions an attachment can select.
-pub const REGIONS: [&str; 4] = ["top_edge", "bottom_edge", "corners", "hole_rim"];
-/// The regions that mean something on a voxelized mesh (its lattice corners are mostly empty
-/// and every surface particle borders empty cells).
-pub const MESH_REGIONS: [&str; 2] = ["top_edge", "bottom_edge"];
+pub use crate::scene::{MESH_REGIONS, REGIONS};
 
 /// Vertices as weighted sums of particles (compressed rows): vertex v is
 /// Σ weight[k] · particle[particle[k]] for k in start[v]..start[v + 1].
@@ -120,18 +118,16 @@ pub struct Tether {
 pub const TETHERS_PER_PARTICLE: usize = 2;
 
 impl Garment {
-    /// Builds a procedural garment from its scene spec (validated before).
+    /// Builds a sheet or rope from its scene spec (validated before).
+    ///
+    /// # Panics
+    /// For a mesh garment, which needs its mesh read: [`build_all`] reads it, or
+    /// [`Garment::voxelized`] takes it placed.
     pub fn build(name: String, spec: &GarmentSpec) -> Garment {
         let dims = match spec.kind {
             GarmentKind::Sheet => [spec.resolution[0], spec.resolution[1], 1],
             GarmentKind::Rope => [spec.resolution[0], 1, 1],
-            GarmentKind::Mesh => {
-                let placed = spec
-                    .placed
-                    .as_ref()
-                    .expect("mesh garments are placed on load");
-                return Garment::voxelized(name, spec, placed);
-            }
+            GarmentKind::Mesh => panic!("a mesh garment is built from its placed mesh: build_all"),
         };
         let size = spec.size();
         let spacing: Vec<f32> = (0..size.len())
@@ -182,6 +178,7 @@ impl Garment {
             tethers: Vec::new(),
             colour: spec.colour.unwrap_or(PALETTE[0]),
             attached: Vec::new(),
+            source: None,
         };
         if spec.hole_radius > 0.0 {
             let size = [size[0], size.get(1).copied().unwrap_or(0.0)];
@@ -212,7 +209,7 @@ impl Garment {
 
     /// A voxelized mesh garment: particles at the occupied cells of `placed`, axis (and shear,
     /// bend) springs between them, the mesh's own surface embedded for export.
-    fn voxelized(name: String, spec: &GarmentSpec, placed: &voxel::PlacedMesh) -> Garment {
+    pub fn voxelized(name: String, spec: &GarmentSpec, placed: Arc<voxel::PlacedMesh>) -> Garment {
         let voxels = &placed.voxels;
         let dims = voxels.dims;
         let count = dims.iter().product::<u32>() as usize;
@@ -236,6 +233,7 @@ impl Garment {
             tethers: Vec::new(),
             colour: spec.colour.unwrap_or(PALETTE[0]),
             attached: Vec::new(),
+            source: None,
         };
         garment.keep(&voxels.occupied);
         // Dense cell → particle, now that the empty cells are gone.
@@ -258,6 +256,7 @@ impl Garment {
         garment.triangles = placed.triangles.clone();
         garment.uvs = placed.uvs.clone();
         garment.embedding = Some(Arc::new(embedding));
+        garment.source = Some(placed.clone());
         garment.finish(spec);
         if spec.tethers {
             garment.tethers = lattice_tethers(&garment);
@@ -419,20 +418,37 @@ pub fn check_selections(
     Ok(())
 }
 
-/// Builds every garment of a (validated) scene, in scene order.
-pub fn build_all(scene: &crate::scene::Scene) -> Vec<Garment> {
-    scene
-        .garments
-        .iter()
-        .enumerate()
-        .map(|(i, spec)| {
-            let mut g = Garment::build(scene.garment_name(i), spec);
-            if spec.colour.is_none() {
-                g.colour = PALETTE[i % PALETTE.len()];
+/// Builds every garment of a (validated) scene, in scene order: the garment preparation step.
+/// Sheets and ropes come from their specs; a mesh garment's mesh is read from the scene's folder
+/// and voxelized ([`voxel::place`]), its pins and attachment cells checked against the lattice,
+/// and the whole bake's work checked again now that the lattices are known. Attachments that
+/// select nothing are refused. `file` names the scene in errors (exit 2).
+pub fn build_all(scene: &crate::scene::Scene, file: &str) -> crate::error::Result<Vec<Garment>> {
+    let mut garments = Vec::with_capacity(scene.garments.len());
+    for (i, spec) in scene.garments.iter().enumerate() {
+        let name = scene.garment_name(i);
+        let mut g = match spec.kind {
+            GarmentKind::Mesh => {
+                Garment::voxelized(name, spec, Arc::new(voxel::place(scene, i, file)?))
             }
-            g
-        })
-        .collect()
+            _ => Garment::build(name, spec),
+        };
+        if spec.colour.is_none() {
+            g.colour = PALETTE[i % PALETTE.len()];
+        }
+        garments.push(g);
+    }
+    // Validation counted the sheets and ropes; the whole bake's work with the lattices too.
+    let particles = garments.iter().map(|g| g.particle_count() as u64).sum();
+    crate::scene::validate::check_work(scene, particles).map_err(|(field, reason)| {
+        crate::error::Error::InvalidField {
+            file: file.to_string(),
+            field,
+            reason,
+        }
+    })?;
+    check_selections(scene, &garments, file)?;
+    Ok(garments)
 }
 
 /// The stencil and colouring of a `dims` lattice for the spec's springs, and its pinned

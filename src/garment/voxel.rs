@@ -314,110 +314,89 @@ pub fn triangle_touches_box(triangle: [Vec3; 3], centre: Vec3, half: Vec3) -> bo
     !separated(edges[0].cross(edges[1]))
 }
 
-/// Reads and voxelizes the mesh of every mesh garment of a (validated) scene, from its folder,
-/// and checks the lattice cells its pins and attachments name.
-pub fn place_scene_meshes(scene: &mut crate::scene::Scene, file: &str) -> Result<()> {
-    use crate::scene::{FillMode, GarmentKind, ParticleSelection};
-    for i in 0..scene.garments.len() {
-        let g = &scene.garments[i];
-        if g.kind != GarmentKind::Mesh {
-            continue;
-        }
-        let fail = |field: &str, reason: String| Error::InvalidField {
-            file: file.to_string(),
-            field: format!("garments[{i}].{field}"),
-            reason,
-        };
-        let name = g.mesh.clone().unwrap_or_default();
-        let source = open_for_scene(
-            &scene.base_dir.join(&name),
-            file,
-            format!("garments[{i}].mesh"),
-        )?;
-        let (lo, hi) = source.bounds();
-        let transform = glam::Affine3A::from_translation(Vec3::from(g.position))
-            * glam::Affine3A::from_mat3(super::rotation_of(g.rotation))
-            * glam::Affine3A::from_scale(Vec3::splat(g.scale))
-            * glam::Affine3A::from_translation(-0.5 * (lo + hi));
-        let placed: Vec<Vec3> = source
-            .vertices
-            .iter()
-            .map(|&v| transform.transform_point3(v))
-            .collect();
-        let (plo, phi) = bounds(&placed);
-        let spacing = g
-            .spacing
-            .unwrap_or_else(|| ((phi - plo).max_element() / 31.0).max(1e-4));
-        let dims = Voxels::dims_for(plo, phi, spacing);
-        let cells: f64 = dims.iter().map(|&n| n as f64).product();
-        if cells > crate::scene::MAX_PARTICLES as f64 {
-            return Err(fail(
-                "spacing",
-                format!(
-                    "{spacing} m lays {}×{}×{} cells over {name}, more than drape's limit of {}",
-                    dims[0],
-                    dims[1],
-                    dims[2],
-                    crate::scene::MAX_PARTICLES
-                ),
-            ));
-        }
-        let fill = match g.fill {
-            FillMode::Auto => None,
-            FillMode::Solid => Some(true),
-            FillMode::Surface => Some(false),
-        };
-        let mesh = PlacedMesh::place(&name, &source, transform, spacing, fill);
-        let check = |field: &str, coords: &[Vec<i64>]| -> Result<()> {
-            for c in coords {
-                let inside = c.len() == 3
-                    && (0..3).all(|a| {
-                        let n = dims[a] as i64;
-                        (-n..n).contains(&c[a])
-                    });
-                if !inside {
-                    return Err(fail(
-                        field,
-                        format!(
-                            "cell {c:?} is not in the {}×{}×{} lattice of {name}",
-                            dims[0], dims[1], dims[2]
-                        ),
-                    ));
-                }
-                let cell = super::resolve_cell(dims, c);
-                if !mesh.voxels.occupied[super::index_of(dims, cell) as usize] {
-                    return Err(fail(
-                        field,
-                        format!("cell {cell:?} of {name}'s lattice holds no particle"),
-                    ));
-                }
-            }
-            Ok(())
-        };
-        check("pins", &g.pins)?;
-        for a in &g.attachments {
-            if let ParticleSelection::Cells(cells) = &a.particles {
-                check("attachments", cells)?;
-            }
-        }
-        scene.garments[i].placed = Some(std::sync::Arc::new(mesh));
-    }
-    // Validation counted the sheets and ropes; the whole bake's work with the lattices too.
-    let particles = scene
-        .garments
+/// Reads and voxelizes the mesh of mesh garment `i` of a (validated) scene, from the scene's
+/// folder, and checks the lattice cells its pins and attachments name.
+pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<PlacedMesh> {
+    use crate::scene::{FillMode, ParticleSelection};
+    let g = &scene.garments[i];
+    let fail = |field: &str, reason: String| Error::InvalidField {
+        file: file.to_string(),
+        field: format!("garments[{i}].{field}"),
+        reason,
+    };
+    let name = g.mesh.clone().unwrap_or_default();
+    let source = open_for_scene(
+        &scene.base_dir.join(&name),
+        file,
+        format!("garments[{i}].mesh"),
+    )?;
+    let (lo, hi) = source.bounds();
+    let transform = glam::Affine3A::from_translation(Vec3::from(g.position))
+        * glam::Affine3A::from_mat3(super::rotation_of(g.rotation))
+        * glam::Affine3A::from_scale(Vec3::splat(g.scale))
+        * glam::Affine3A::from_translation(-0.5 * (lo + hi));
+    let placed: Vec<Vec3> = source
+        .vertices
         .iter()
-        .map(|g| match &g.placed {
-            Some(p) => (p.voxels.surface_cells + p.voxels.interior_cells) as u64,
-            None => g.resolution.iter().map(|&n| n as u64).product(),
-        })
-        .sum();
-    crate::scene::validate::check_work(scene, particles).map_err(|(field, reason)| {
-        Error::InvalidField {
-            file: file.to_string(),
-            field,
-            reason,
+        .map(|&v| transform.transform_point3(v))
+        .collect();
+    let (plo, phi) = bounds(&placed);
+    let spacing = g
+        .spacing
+        .unwrap_or_else(|| ((phi - plo).max_element() / 31.0).max(1e-4));
+    let dims = Voxels::dims_for(plo, phi, spacing);
+    let cells: f64 = dims.iter().map(|&n| n as f64).product();
+    if cells > crate::scene::MAX_PARTICLES as f64 {
+        return Err(fail(
+            "spacing",
+            format!(
+                "{spacing} m lays {}×{}×{} cells over {name}, more than drape's limit of {}",
+                dims[0],
+                dims[1],
+                dims[2],
+                crate::scene::MAX_PARTICLES
+            ),
+        ));
+    }
+    let fill = match g.fill {
+        FillMode::Auto => None,
+        FillMode::Solid => Some(true),
+        FillMode::Surface => Some(false),
+    };
+    let mesh = PlacedMesh::place(&name, &source, transform, spacing, fill);
+    let check = |field: &str, coords: &[Vec<i64>]| -> Result<()> {
+        for c in coords {
+            let inside = c.len() == 3
+                && (0..3).all(|a| {
+                    let n = dims[a] as i64;
+                    (-n..n).contains(&c[a])
+                });
+            if !inside {
+                return Err(fail(
+                    field,
+                    format!(
+                        "cell {c:?} is not in the {}×{}×{} lattice of {name}",
+                        dims[0], dims[1], dims[2]
+                    ),
+                ));
+            }
+            let cell = super::resolve_cell(dims, c);
+            if !mesh.voxels.occupied[super::index_of(dims, cell) as usize] {
+                return Err(fail(
+                    field,
+                    format!("cell {cell:?} of {name}'s lattice holds no particle"),
+                ));
+            }
         }
-    })
+        Ok(())
+    };
+    check("pins", &g.pins)?;
+    for a in &g.attachments {
+        if let ParticleSelection::Cells(cells) = &a.particles {
+            check("attachments", cells)?;
+        }
+    }
+    Ok(mesh)
 }
 
 /// Reads a garment mesh for a scene, naming the scene file and field on failure.

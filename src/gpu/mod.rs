@@ -6,6 +6,7 @@
 //! - [`kernels`]: every pipeline, built once;
 //! - [`solver`]: a scene's buffers and the frame loop.
 
+pub mod buffers;
 pub mod context;
 pub mod kernels;
 pub mod layout;

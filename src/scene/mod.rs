@@ -257,9 +257,6 @@ pub struct GarmentSpec {
     pub scale: f32,
     /// Mesh garments: fill the inside. Default `"auto"`.
     pub fill: FillMode,
-    /// Mesh garments: the mesh as read and voxelized when the scene was loaded.
-    #[serde(skip)]
-    pub placed: Option<std::sync::Arc<crate::garment::voxel::PlacedMesh>>,
     /// Long-range attachments (Kim, Chentanez and Müller 2012): every free particle stays within
     /// its rest distance of its two nearest pins, so a pinned cloth cannot stretch away from its
     /// pins however few iterations the solver runs. Default true; no effect without pins.
@@ -289,7 +286,6 @@ impl Default for GarmentSpec {
             spacing: None,
             scale: 1.0,
             fill: FillMode::Auto,
-            placed: None,
         }
     }
 }
@@ -403,6 +399,12 @@ pub enum ColliderKind {
     /// length along Z] around `center`, turned by `rotation`.
     Wedge,
 }
+
+/// Named regions of a sheet or rope an attachment can select.
+pub const REGIONS: [&str; 4] = ["top_edge", "bottom_edge", "corners", "hole_rim"];
+/// The regions that mean something on a voxelized mesh (its lattice corners are mostly empty
+/// and every surface particle borders empty cells).
+pub const MESH_REGIONS: [&str; 2] = ["top_edge", "bottom_edge"];
 
 /// A static analytic collider. Fields that do not belong to `kind` are rejected by validation.
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -581,7 +583,8 @@ impl Default for OutputSpec {
 }
 
 impl Scene {
-    /// Reads, parses and validates a scene file (and the garment meshes it names).
+    /// Reads, parses and validates a scene file. Garment meshes and characters are read later,
+    /// when the garments are built (`garment::build_all`) and the characters loaded.
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
         let base_dir = match path.parent() {
@@ -603,18 +606,17 @@ impl Scene {
         Scene::parse_in(DEFAULT_SCENE, DEFAULT_SCENE_FILE, &root.join("scenes"))
     }
 
-    /// Parses and validates scene JSON; `file` names the source in error messages. Garment
-    /// meshes are read relative to the working folder.
+    /// Parses and validates scene JSON; `file` names the source in error messages. Relative
+    /// paths (garment meshes, characters) start at the working folder.
     pub fn parse(text: &str, file: &str) -> Result<Scene> {
         Scene::parse_in(text, file, Path::new("."))
     }
 
-    /// Parses and validates scene JSON whose relative paths start at `base_dir`, then reads and
-    /// voxelizes its garment meshes.
+    /// Parses and validates scene JSON whose relative paths start at `base_dir`: pure data, no
+    /// file is read.
     pub fn parse_in(text: &str, file: &str, base_dir: &Path) -> Result<Scene> {
         let mut scene = Scene::parse_only(text, file)?;
         scene.base_dir = base_dir.to_path_buf();
-        crate::garment::voxel::place_scene_meshes(&mut scene, file)?;
         Ok(scene)
     }
 

@@ -362,7 +362,7 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
             check_cells(cells, axes, &g.resolution, "attachments")?
         }
     }
-    check_attachments(g, &crate::garment::REGIONS)?;
+    check_attachments(g, &super::REGIONS)?;
     Ok(g.resolution.iter().map(|&n| n as u64).product())
 }
 
@@ -404,7 +404,7 @@ fn validate_mesh_garment(g: &GarmentSpec) -> std::result::Result<(), (&'static s
             "a mesh garment starts at its rest shape (scale it with `scale`)".into(),
         ));
     }
-    check_attachments(g, &crate::garment::MESH_REGIONS)
+    check_attachments(g, &super::MESH_REGIONS)
 }
 
 /// Regions, proximity selections and targets of a garment's attachments.

@@ -81,12 +81,14 @@ pub struct Simulation {
 
 impl Simulation {
     /// Builds the garments, model, solver and colliders of a (validated) scene.
+    ///
+    /// # Panics
+    /// When a garment cannot be built (a mesh garment's file unreadable, an attachment that
+    /// selects nothing): the bake builds through [`crate::bake::simulation`], which returns
+    /// those as errors.
     pub fn new(scene: &Scene) -> Simulation {
-        Simulation::from_garments(
-            scene,
-            &crate::garment::build_all(scene),
-            scene.solver.clone(),
-        )
+        let garments = crate::garment::build_all(scene, "scene").unwrap_or_else(|e| panic!("{e}"));
+        Simulation::from_garments(scene, &garments, scene.solver.clone())
     }
 
     /// Builds a simulation of `garments` with the timing, forces and colliders of `scene`.
