@@ -106,6 +106,8 @@ impl Chart {
 
     /// The chart as a 900 × 600 SVG document. Points that a log axis cannot show (zero,
     /// negative, not finite) are left out; a chart with no point to show is an error.
+    // Long: plotters gives each of the four axis combinations its own coordinate type, so one
+    // macro body draws all four; split, it would repeat those generics.
     pub fn to_svg(&self) -> std::result::Result<String, String> {
         let fail = |e: &dyn std::fmt::Display| e.to_string();
         let shown = |x: f64, log: bool| x.is_finite() && (!log || x > 0.0);

@@ -258,6 +258,8 @@ impl Config {
 
 /// Runs the study, writes CSV and SVG charts into `out` and returns the Markdown section that
 /// describes them (image paths relative to `out`'s parent, as `docs/` holds them).
+// Long: the study in order (reference runs, each solver and backend, charts, the Markdown)
+// sharing its measurements; each step is a few lines.
 pub fn report(cfg: &Config, out: &Path, log: &mut dyn FnMut(&str)) -> Result<String> {
     use std::fmt::Write as _;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, "cannot create", e))?;

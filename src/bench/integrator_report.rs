@@ -393,6 +393,7 @@ fn rule_section(cfg: &Config, out: &Path, log: &mut dyn FnMut(&str)) -> Result<S
 }
 
 /// Wall time to equilibrium against mesh size.
+// Long: the section's runs, table and chart share their measurements.
 fn cost_section(
     cfg: &Config,
     out: &Path,

@@ -140,6 +140,8 @@ impl Asset {
         Asset::from_scene(&scene, &path.display().to_string())
     }
 
+    /// One pass over assimp's scene (long: nodes, meshes with their bones, then clips, all
+    /// sharing the node table).
     fn from_scene(scene: &AiScene, file: &str) -> Result<Asset> {
         let root = scene.root.as_ref().ok_or_else(|| Error::InvalidField {
             file: file.into(),

@@ -11,7 +11,7 @@ pub mod shell;
 
 pub use shell::ShellCollider;
 
-use crate::scene::{ColliderKind, ColliderSpec};
+use crate::scene::{ColliderShape, ColliderSpec};
 use glam::{EulerRot, Quat, Vec2, Vec3, Vec4};
 
 /// An analytic shape.
@@ -136,40 +136,54 @@ pub struct Penetration {
 impl Collider {
     /// Builds a collider from its (validated) scene spec.
     pub fn from_spec(spec: &ColliderSpec) -> Collider {
-        let shape = match spec.kind {
-            ColliderKind::Plane => {
-                let normal = Vec3::from(spec.normal.unwrap_or([0.0, 1.0, 0.0])).normalize();
-                let point = Vec3::from(spec.point.unwrap_or([0.0; 3]));
+        let v = Vec3::from;
+        let shape = match spec.shape {
+            ColliderShape::Plane { point, normal } => {
+                let normal = v(normal.unwrap_or([0.0, 1.0, 0.0])).normalize();
                 Shape::Plane {
                     normal,
-                    offset: normal.dot(point),
+                    offset: normal.dot(v(point.unwrap_or([0.0; 3]))),
                 }
             }
-            ColliderKind::Sphere => Shape::Sphere {
-                center: Vec3::from(spec.center.expect("validated")),
-                radius: spec.radius.expect("validated"),
+            ColliderShape::Sphere { center, radius } => Shape::Sphere {
+                center: v(center),
+                radius,
             },
-            ColliderKind::Box => Shape::Box {
-                center: Vec3::from(spec.center.expect("validated")),
-                half: Vec3::from(spec.size.expect("validated")) * 0.5,
-                rotation: turn(spec.rotation),
+            ColliderShape::Box {
+                center,
+                size,
+                rotation,
+            } => Shape::Box {
+                center: v(center),
+                half: v(size) * 0.5,
+                rotation: turn(rotation),
             },
-            ColliderKind::Wedge => Shape::Wedge {
-                center: Vec3::from(spec.center.expect("validated")),
-                half: Vec3::from(spec.size.expect("validated")) * 0.5,
-                rotation: turn(spec.rotation),
+            ColliderShape::Wedge {
+                center,
+                size,
+                rotation,
+            } => Shape::Wedge {
+                center: v(center),
+                half: v(size) * 0.5,
+                rotation: turn(rotation),
             },
-            ColliderKind::Funnel => Shape::Funnel {
-                center: Vec3::from(spec.center.expect("validated")),
-                radius: spec.radius.expect("validated"),
-                top_radius: spec.top_radius.expect("validated"),
-                height: spec.height.expect("validated"),
-                half_thickness: 0.5 * spec.thickness.unwrap_or(0.01),
+            ColliderShape::Funnel {
+                center,
+                radius,
+                top_radius,
+                height,
+                thickness,
+            } => Shape::Funnel {
+                center: v(center),
+                radius,
+                top_radius,
+                height,
+                half_thickness: 0.5 * thickness.unwrap_or(0.01),
             },
-            ColliderKind::Capsule => Shape::Capsule {
-                start: Vec3::from(spec.start.expect("validated")),
-                end: Vec3::from(spec.end.expect("validated")),
-                radius: spec.radius.expect("validated"),
+            ColliderShape::Capsule { start, end, radius } => Shape::Capsule {
+                start: v(start),
+                end: v(end),
+                radius,
             },
         };
         Collider {

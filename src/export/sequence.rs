@@ -4,7 +4,7 @@
 
 use super::gltf::AnimatedMesh;
 use super::sink::{Frame, MeshInfo, Role};
-use crate::scene::{ColliderKind, ColliderSpec};
+use crate::scene::ColliderSpec;
 use crate::sim::attach::Track;
 use crate::sim::model::GarmentRange;
 use glam::Vec3;
@@ -40,32 +40,32 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<ColliderMesh> {
         .iter()
         .enumerate()
         .filter_map(|(i, c)| {
-            let v = |a: Option<[f32; 3]>| a.map(Vec3::from);
-            let (positions, triangles) = match c.kind {
-                ColliderKind::Plane => return None,
-                ColliderKind::Sphere => rounded(v(c.center)?, v(c.center)?, c.radius?),
-                ColliderKind::Capsule => rounded(v(c.start)?, v(c.end)?, c.radius?),
-                ColliderKind::Box | ColliderKind::Wedge => {
-                    // Built at the origin, then turned and placed like the collider.
-                    let half = v(c.size)? * 0.5;
-                    let (p, t) = if c.kind == ColliderKind::Box {
-                        cuboid(Vec3::ZERO, half)
-                    } else {
-                        prism(half)
-                    };
-                    let shape = crate::collide::Collider::from_spec(c).shape;
-                    let (crate::collide::Shape::Box {
-                        center, rotation, ..
-                    }
-                    | crate::collide::Shape::Wedge {
-                        center, rotation, ..
-                    }) = shape
-                    else {
-                        return None;
-                    };
-                    (p.iter().map(|q| center + rotation * *q).collect(), t)
-                }
-                ColliderKind::Funnel => frustum(v(c.center)?, c.radius?, c.top_radius?, c.height?),
+            use crate::collide::Shape;
+            let turned = |(p, t): Mesh, center: Vec3, rotation: glam::Quat| -> Mesh {
+                (p.iter().map(|q| center + rotation * *q).collect(), t)
+            };
+            // Built at the origin, then turned and placed like the collider.
+            let (positions, triangles) = match crate::collide::Collider::from_spec(c).shape {
+                Shape::Plane { .. } => return None,
+                Shape::Sphere { center, radius } => rounded(center, center, radius),
+                Shape::Capsule { start, end, radius } => rounded(start, end, radius),
+                Shape::Box {
+                    center,
+                    half,
+                    rotation,
+                } => turned(cuboid(Vec3::ZERO, half), center, rotation),
+                Shape::Wedge {
+                    center,
+                    half,
+                    rotation,
+                } => turned(prism(half), center, rotation),
+                Shape::Funnel {
+                    center,
+                    radius,
+                    top_radius,
+                    height,
+                    ..
+                } => frustum(center, radius, top_radius, height),
             };
             let track = (!c.keyframes.is_empty()).then(|| {
                 let pivot = crate::collide::Collider::from_spec(c).shape.centre();

@@ -47,13 +47,24 @@ pub const KERNEL_FILES: [(&str, &str, &[&str]); 6] = [
     ),
 ];
 
-/// The full source of one kernel file: the common part, then the file.
+/// Collision functions, one file per module of `src/collide/`, included by the kernels that
+/// call them.
+pub const COLLIDERS: &str = include_str!("../../shaders/colliders.wgsl");
+pub const SHELLS: &str = include_str!("../../shaders/shells.wgsl");
+
+/// The full source of one kernel file: the common part, the collision functions it calls, then
+/// the file.
 pub fn source(file: &str) -> String {
     let (_, text, _) = KERNEL_FILES
         .iter()
         .find(|(f, _, _)| *f == file)
         .expect("known kernel file");
-    format!("{COMMON}\n{text}")
+    let collisions = if file == "finish.wgsl" {
+        format!("{COLLIDERS}\n{SHELLS}\n")
+    } else {
+        String::new()
+    };
+    format!("{COMMON}\n{collisions}{text}")
 }
 
 /// Bindings of group 0: 1 uniform, 6 read-write and 7 read-only storage buffers.

@@ -248,6 +248,7 @@ impl Pipelines {
 
 /// The four render pipelines over the three bind group layouts: shadow (depth only, biased),
 /// lit surfaces, wireframe lines and rope strips (both multisampled).
+// Long: four pipeline descriptors, mostly the fields wgpu requires of each.
 fn render_pipelines(
     device: &wgpu::Device,
     globals_only: &wgpu::BindGroupLayout,

@@ -5,8 +5,10 @@
 //! typo never silently falls back to a default. Parsing reports file, line, column and the JSON path
 //! of the field; [`validate`] then rejects impossible values, naming the field and the reason.
 
+mod collider;
 pub(crate) mod validate;
 
+pub use collider::{ColliderKind, ColliderShape, ColliderSpec};
 pub use validate::{bad_name, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_PARTICLES};
 
 use crate::error::{Error, Result};
@@ -379,84 +381,11 @@ impl Default for Stiffness {
     }
 }
 
-/// Shape of an analytic collider.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ColliderKind {
-    /// Half-space: everything below the plane through `point` with normal `normal` is solid.
-    Plane,
-    /// Solid sphere of `radius` around `center`.
-    Sphere,
-    /// Solid axis-aligned box of `size` around `center`.
-    Box,
-    /// Solid capsule: every point within `radius` of the segment from `start` to `end`.
-    Capsule,
-    /// A funnel (thesis §5.3.5): an upright cone frustum wall of `thickness`, its spout of
-    /// `radius` centred on `center`, widening to `top_radius` at `height` above it; open at both
-    /// ends, so cloth can fall through.
-    Funnel,
-    /// A wedge: a triangular prism with its blade down, `size` = [width of the top face, height,
-    /// length along Z] around `center`, turned by `rotation`.
-    Wedge,
-}
-
 /// Named regions of a sheet or rope an attachment can select.
 pub const REGIONS: [&str; 4] = ["top_edge", "bottom_edge", "corners", "hole_rim"];
 /// The regions that mean something on a voxelized mesh (its lattice corners are mostly empty
 /// and every surface particle borders empty cells).
 pub const MESH_REGIONS: [&str; 2] = ["top_edge", "bottom_edge"];
-
-/// A static analytic collider. Fields that do not belong to `kind` are rejected by validation.
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct ColliderSpec {
-    /// `"plane"`, `"sphere"`, `"box"`, `"capsule"`, `"funnel"` or `"wedge"`. Required.
-    pub kind: ColliderKind,
-    /// Plane: a point on the plane [m]. Default the origin.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub point: Option<[f32; 3]>,
-    /// Plane: outward normal (normalised by drape). Default [0, 1, 0].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub normal: Option<[f32; 3]>,
-    /// Sphere, box: centre [m]. Required for them.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub center: Option<[f32; 3]>,
-    /// Sphere, capsule: radius [m]. Required for them.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub radius: Option<f32>,
-    /// Box: edge lengths along X, Y, Z [m]. Required for boxes.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub size: Option<[f32; 3]>,
-    /// Capsule: the ends of its axis [m]. Required for capsules.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub start: Option<[f32; 3]>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub end: Option<[f32; 3]>,
-    /// Funnel: radius of the wide top [m]. Required for funnels.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub top_radius: Option<f32>,
-    /// Funnel: height from the spout to the top [m]. Required for funnels.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub height: Option<f32>,
-    /// Funnel: wall thickness [m]. Default 0.01.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub thickness: Option<f32>,
-    /// Box, wedge: orientation, Euler degrees (X, Y, Z) about its centre. Default none
-    /// (axis-aligned).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rotation: Option<[f32; 3]>,
-    /// A keyframed rigid motion of the collider about its centre (a plane's point, a capsule's
-    /// midpoint), linear between keys, held after the last. Default none (static).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub keyframes: Vec<KeyframeSpec>,
-    /// Coulomb friction coefficient against this collider. Default 0.5.
-    #[serde(default = "default_friction")]
-    pub friction: f32,
-}
-
-fn default_friction() -> f32 {
-    0.5
-}
 
 /// An animated character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern,
 /// placed in the scene and covered by a shell of collision particles.
@@ -628,6 +557,12 @@ impl Scene {
             let path = e.path().to_string();
             let inner = e.into_inner();
             let mut reason = strip_position(&inner.to_string());
+            // A collider's own check names its field: `.radius: a sphere needs a radius`.
+            let mut path = path;
+            if let Some((field, why)) = reason.strip_prefix('.').and_then(|r| r.split_once(": ")) {
+                path = format!("{path}.{field}");
+                reason = why.to_string();
+            }
             if reason == "expected value" {
                 if let Some(choices) = enum_choices(text, &path) {
                     reason = format!("expected {choices}");

@@ -1,6 +1,6 @@
 //! Rejects impossible scene values, naming the field (as a JSON path) and the reason.
 
-use super::{ColliderKind, FillMode, GarmentKind, GarmentSpec, ParticleSelection, Scene};
+use super::{FillMode, GarmentKind, GarmentSpec, ParticleSelection, Scene};
 use crate::error::{Error, Result};
 
 /// The most particles one scene may hold (about 3 GiB of solver state): a guard against a typo
@@ -491,103 +491,78 @@ fn check_cells(
     Ok(())
 }
 
+/// The values of a collider (its fields already match its kind: parsing checked them).
 fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'static str, String)> {
+    use super::ColliderShape as S;
     non_negative(c.friction).map_err(|r| ("friction", r))?;
-    // Each kind takes its own fields and no others.
-    let given = [
-        ("point", c.point.is_some()),
-        ("normal", c.normal.is_some()),
-        ("center", c.center.is_some()),
-        ("radius", c.radius.is_some()),
-        ("size", c.size.is_some()),
-        ("start", c.start.is_some()),
-        ("end", c.end.is_some()),
-        ("rotation", c.rotation.is_some()),
-        ("top_radius", c.top_radius.is_some()),
-        ("height", c.height.is_some()),
-        ("thickness", c.thickness.is_some()),
-    ];
-    let (name, allowed): (&str, &[&str]) = match c.kind {
-        ColliderKind::Plane => ("a plane", &["point", "normal"]),
-        ColliderKind::Sphere => ("a sphere", &["center", "radius"]),
-        ColliderKind::Box => ("a box", &["center", "size", "rotation"]),
-        ColliderKind::Capsule => ("a capsule", &["start", "end", "radius"]),
-        ColliderKind::Funnel => (
-            "a funnel",
-            &["center", "radius", "top_radius", "height", "thickness"],
-        ),
-        ColliderKind::Wedge => ("a wedge", &["center", "size", "rotation"]),
-    };
-    if let Some((field, _)) = given.iter().find(|(f, set)| *set && !allowed.contains(f)) {
-        return Err((
-            field,
-            format!("{name} takes {}, not {field}", allowed.join(", ")),
-        ));
-    }
-    let need = |v: Option<[f32; 3]>, field: &'static str| {
-        v.ok_or((field, format!("{name} needs {field}")))
-            .and_then(|v| finite3(v).map(|_| v).map_err(|r| (field, r)))
-    };
-    let radius = || {
-        let r = c
-            .radius
-            .ok_or(("radius", format!("{name} needs a radius")))?;
-        length(r).map_err(|r| ("radius", r))
-    };
-    if let Some(r) = c.rotation {
-        finite3(r).map_err(|r| ("rotation", r))?;
-    }
+    let point = |v: [f32; 3], field: &'static str| finite3(v).map_err(|r| (field, r));
+    let size = |v: f32, field: &'static str| length(v).map_err(|r| (field, r));
+    let rotation = |r: Option<[f32; 3]>| r.map_or(Ok(()), |r| point(r, "rotation"));
     check_keyframes(&c.keyframes, "keyframes")?;
-    if c.kind == ColliderKind::Funnel && c.keyframes.iter().any(|k| k.rotation != [0.0; 3]) {
-        return Err((
-            "keyframes",
-            "a funnel stays upright: its keyframes may translate it, not turn it".into(),
-        ));
-    }
-    match c.kind {
-        ColliderKind::Plane => {
-            if let Some(p) = c.point {
-                finite3(p).map_err(|r| ("point", r))?;
+    match c.shape {
+        S::Plane { point: p, normal } => {
+            if let Some(p) = p {
+                point(p, "point")?;
             }
-            if let Some(n) = c.normal {
-                finite3(n).map_err(|r| ("normal", r))?;
+            if let Some(n) = normal {
+                point(n, "normal")?;
                 if glam::Vec3::from(n).length() < 1e-6 {
                     return Err(("normal", "must not be the zero vector".into()));
                 }
             }
         }
-        ColliderKind::Sphere => {
-            need(c.center, "center")?;
-            radius()?;
+        S::Sphere { center, radius } => {
+            point(center, "center")?;
+            size(radius, "radius")?;
         }
-        ColliderKind::Funnel => {
-            need(c.center, "center")?;
-            radius()?;
-            for (field, v) in [("top_radius", c.top_radius), ("height", c.height)] {
-                let v = v.ok_or((field, format!("{name} needs {field}")))?;
-                length(v).map_err(|r| (field, r))?;
-            }
-            if let Some(t) = c.thickness {
-                length(t).map_err(|r| ("thickness", r))?;
-            }
-        }
-        ColliderKind::Box | ColliderKind::Wedge => {
-            need(c.center, "center")?;
-            let size = need(c.size, "size")?;
-            if size.iter().any(|&e| e <= 0.0) {
+        S::Funnel {
+            center,
+            radius,
+            top_radius,
+            height,
+            thickness,
+        } => {
+            if c.keyframes.iter().any(|k| k.rotation != [0.0; 3]) {
                 return Err((
-                    "size",
-                    format!("{size:?}: every edge must be longer than 0"),
+                    "keyframes",
+                    "a funnel stays upright: its keyframes may translate it, not turn it".into(),
                 ));
             }
-            for &e in &size {
-                length(e).map_err(|r| ("size", r))?;
+            point(center, "center")?;
+            size(radius, "radius")?;
+            size(top_radius, "top_radius")?;
+            size(height, "height")?;
+            if let Some(t) = thickness {
+                size(t, "thickness")?;
             }
         }
-        ColliderKind::Capsule => {
-            need(c.start, "start")?;
-            need(c.end, "end")?;
-            radius()?;
+        S::Box {
+            center,
+            size: edges,
+            rotation: r,
+        }
+        | S::Wedge {
+            center,
+            size: edges,
+            rotation: r,
+        } => {
+            point(center, "center")?;
+            point(edges, "size")?;
+            if edges.iter().any(|&e| e <= 0.0) {
+                return Err((
+                    "size",
+                    format!("{edges:?}: every edge must be longer than 0"),
+                ));
+            }
+            for &e in &edges {
+                size(e, "size")?;
+            }
+            rotation(r)?;
+        }
+        S::Capsule { start, end, radius } => {
+            point(start, "start")?;
+            point(end, "end")?;
+            size(radius, "radius")?;
         }
     }
     Ok(())

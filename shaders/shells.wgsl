@@ -1,0 +1,273 @@
+// Characters' shells on the GPU, mirroring `src/collide/shell.rs` step for step
+// (ShellCollider::resolve, push_out, first_contact and the nearby lists of collision passes).
+// Included before `finish.wgsl` (see `gpu::kernels::source`).
+
+const SHELL_FOUND: u32 = 512u;
+// Length of a nearby list (shell::NEARBY), an empty entry, and "keep no list".
+const NEARBY: u32 = 16u;
+const NO_ENTRY: u32 = 0xffffffffu;
+const NO_LIST: u32 = 0xffffffffu;
+
+fn shell_bucket(c: vec3<i32>, table: u32) -> u32 {
+    let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
+    return bitcast<u32>(h) & (table - 1u);
+}
+
+// Where substep `substep`'s data of shell `sh` starts: particles, grid.
+struct ShellAt {
+    info: ShellInfo,
+    particles: u32,
+    grid: u32,
+}
+
+fn shell_at(s: u32, substep: u32) -> ShellAt {
+    let info = shell_info[s];
+    return ShellAt(
+        info,
+        substep * contacts.shell_stride + info.first,
+        substep * contacts.grid_stride + info.grid,
+    );
+}
+
+struct FirstHit {
+    t: f32,
+    j: u32,
+    found: bool,
+}
+
+// First-contact test of one candidate (ShellCollider::first_contact).
+fn shell_first_visit(at: ShellAt, j: u32, x: vec3<f32>, d: vec3<f32>, reach: f32, best: ptr<function, FirstHit>) {
+    let q = shell_particle[at.particles + j];
+    let n = q.normal.xyz;
+    let end = q.position.xyz;
+    let r0 = x - (end - q.motion.xyz);
+    let r1 = x + d - end;
+    let h0 = dot(r0, n);
+    let h1 = dot(r1, n);
+    if (h0 < 0.0 || h1 >= 0.0 || dot(r1, r1) < reach * reach) {
+        return;
+    }
+    let t = h0 / (h0 - h1);
+    let crossing = r0 + (r1 - r0) * t;
+    if (dot(crossing, crossing) >= reach * reach) {
+        return;
+    }
+    if (!(*best).found || t < (*best).t) {
+        *best = FirstHit(t, j, true);
+    }
+}
+
+struct PushOut {
+    p: vec3<f32>,
+    total: vec3<f32>,
+    skin: vec3<f32>,
+    contacts: u32,
+    // The nearest candidates within two reaches, sorted by squared distance (when listing).
+    listing: bool,
+    listed: u32,
+    near: array<u32, 16>,
+    far: array<f32, 16>,
+}
+
+fn push_out_at(p: vec3<f32>, listing: bool) -> PushOut {
+    var acc: PushOut;
+    acc.p = p;
+    acc.total = vec3<f32>(0.0);
+    acc.skin = vec3<f32>(0.0);
+    acc.contacts = 0u;
+    acc.listing = listing;
+    acc.listed = 0u;
+    return acc;
+}
+
+// Writes the list kept while pushing out to `shell_nearby` at `at_list` (NO_ENTRY past its end).
+fn write_nearby(acc: PushOut, at_list: u32) {
+    if (!acc.listing) {
+        return;
+    }
+    for (var k = 0u; k < NEARBY; k++) {
+        shell_nearby[at_list + k] = select(NO_ENTRY, acc.near[k], k < acc.listed);
+    }
+}
+
+// Push-out from one candidate (ShellCollider::push_out).
+fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>) {
+    let q = shell_particle[at.particles + j];
+    let d = (*acc).p - q.position.xyz;
+    let dist2 = dot(d, d);
+    if ((*acc).listing && dist2 < 4.0 * reach * reach
+        && ((*acc).listed < NEARBY || dist2 < (*acc).far[NEARBY - 1u])) {
+        var k = min((*acc).listed, NEARBY - 1u);
+        while (k > 0u && (*acc).far[k - 1u] > dist2) {
+            (*acc).far[k] = (*acc).far[k - 1u];
+            (*acc).near[k] = (*acc).near[k - 1u];
+            k = k - 1u;
+        }
+        (*acc).far[k] = dist2;
+        (*acc).near[k] = j;
+        (*acc).listed = min((*acc).listed + 1u, NEARBY);
+    }
+    if (dist2 >= reach * reach) {
+        return;
+    }
+    var push: vec3<f32>;
+    let normal = q.normal.xyz;
+    if ((at.info.flags & 2u) != 0u && dot(d, normal) < 0.0) {
+        let along = d - normal * dot(d, normal);
+        let height = sqrt(max(reach * reach - dot(along, along), 0.0));
+        push = normal * (height - dot(d, normal));
+    } else {
+        let dist = sqrt(dist2);
+        var n = vec3<f32>(0.0, 1.0, 0.0);
+        if (dist > 1e-9) {
+            n = d / dist;
+        }
+        push = n * (reach - dist);
+    }
+    (*acc).p = (*acc).p + push;
+    (*acc).total = (*acc).total + push;
+    (*acc).skin = (*acc).skin + q.motion.xyz;
+    (*acc).contacts = (*acc).contacts + 1u;
+}
+
+fn shell_items(at: ShellAt, b: u32) -> vec2<u32> {
+    let items = at.grid + at.info.table + 1u;
+    return vec2<u32>(items + shell_grid[at.grid + b], items + shell_grid[at.grid + b + 1u]);
+}
+
+// Push-out over the 27 cells around `p` (HashGrid::near: each bucket once).
+fn shell_push_near(at: ShellAt, reach: f32, acc: ptr<function, PushOut>) {
+    let c = vec3<i32>(floor((*acc).p / at.info.cell));
+    var seen: array<u32, 27>;
+    var n = 0u;
+    for (var dx = -1; dx <= 1; dx++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dz = -1; dz <= 1; dz++) {
+                let b = shell_bucket(c + vec3<i32>(dx, dy, dz), at.info.table);
+                var again = false;
+                for (var k = 0u; k < n; k++) {
+                    again = again || seen[k] == b;
+                }
+                if (again) {
+                    continue;
+                }
+                seen[n] = b;
+                n = n + 1u;
+                let range = shell_items(at, b);
+                for (var k = range.x; k < range.y; k++) {
+                    shell_push_visit(at, shell_grid[k], reach, acc);
+                }
+            }
+        }
+    }
+}
+
+// Friction on the motion relative to the skin (as the CPU), the corrected displacement.
+fn shell_finish(at: ShellAt, x3: vec3<f32>, acc: PushOut) -> vec4<f32> {
+    var p = acc.p;
+    if (acc.contacts == 0u) {
+        return vec4<f32>(p - x3, 0.0);
+    }
+    let push_len = length(acc.total);
+    var n = vec3<f32>(0.0, 1.0, 0.0);
+    if (push_len > 1e-12) {
+        n = acc.total / push_len;
+    }
+    let skin = acc.skin / f32(acc.contacts);
+    let relative = (p - x3) - skin;
+    let tangent = relative - n * dot(relative, n);
+    let t_len = length(tangent);
+    let limit = at.info.friction * push_len;
+    if (t_len <= limit) {
+        p = p - tangent;
+    } else {
+        p = p - tangent * (limit / t_len);
+    }
+    return vec4<f32>(p - x3, 0.0);
+}
+
+// A garment particle against shell `s` at substep `substep` (ShellCollider::resolve); lists its
+// nearby shell particles at `list` unless that is NO_LIST.
+fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32, list: u32) -> vec4<f32> {
+    let at = shell_at(s, substep);
+    if (at.info.count == 0u) {
+        return delta;
+    }
+    let reach = at.info.radius + radius;
+    let x3 = x.xyz;
+    let d = delta.xyz;
+    var p = x3 + d;
+    if ((at.info.flags & 3u) == 3u && length(d) <= 64.0 * at.info.cell) {
+        // The cells around the path (HashGrid::near_segment), gathered once for both tests.
+        var found: array<u32, 512>;
+        var count = 0u;
+        let lo = vec3<i32>(floor(min(x3, p) / at.info.cell)) - vec3<i32>(1);
+        let hi = vec3<i32>(floor(max(x3, p) / at.info.cell)) + vec3<i32>(1);
+        for (var cx = lo.x; cx <= hi.x; cx++) {
+            for (var cy = lo.y; cy <= hi.y; cy++) {
+                for (var cz = lo.z; cz <= hi.z; cz++) {
+                    let range = shell_items(at, shell_bucket(vec3<i32>(cx, cy, cz), at.info.table));
+                    for (var k = range.x; k < range.y; k++) {
+                        if (count < SHELL_FOUND) {
+                            found[count] = shell_grid[k];
+                        }
+                        count = count + 1u;
+                    }
+                }
+            }
+        }
+        if (count <= SHELL_FOUND) {
+            var best = FirstHit(0.0, 0u, false);
+            for (var k = 0u; k < count; k++) {
+                shell_first_visit(at, found[k], x3, d, reach, &best);
+            }
+            if (best.found) {
+                p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
+            }
+            var acc = push_out_at(p, list != NO_LIST);
+            for (var k = 0u; k < count; k++) {
+                shell_push_visit(at, found[k], reach, &acc);
+            }
+            write_nearby(acc, list);
+            return shell_finish(at, x3, acc);
+        }
+        // Too many candidates to keep: trace with a second walk over the same cells.
+        var best = FirstHit(0.0, 0u, false);
+        for (var cx = lo.x; cx <= hi.x; cx++) {
+            for (var cy = lo.y; cy <= hi.y; cy++) {
+                for (var cz = lo.z; cz <= hi.z; cz++) {
+                    let range = shell_items(at, shell_bucket(vec3<i32>(cx, cy, cz), at.info.table));
+                    for (var k = range.x; k < range.y; k++) {
+                        shell_first_visit(at, shell_grid[k], x3, d, reach, &best);
+                    }
+                }
+            }
+        }
+        if (best.found) {
+            p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
+        }
+    }
+    var acc = push_out_at(p, list != NO_LIST);
+    shell_push_near(at, reach, &acc);
+    write_nearby(acc, list);
+    return shell_finish(at, x3, acc);
+}
+
+// A collision pass's test of a garment particle against shell `s`'s particles listed at `list`
+// (ShellCollider::resolve_nearby): end point only, no listing.
+fn shell_resolve_nearby(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32, list: u32) -> vec4<f32> {
+    if (shell_nearby[list] == NO_ENTRY) {
+        return delta;
+    }
+    let at = shell_at(s, substep);
+    let reach = at.info.radius + radius;
+    var acc = push_out_at(x.xyz + delta.xyz, false);
+    for (var k = 0u; k < NEARBY; k++) {
+        let j = shell_nearby[list + k];
+        if (j == NO_ENTRY) {
+            break;
+        }
+        shell_push_visit(at, j, reach, &acc);
+    }
+    return shell_finish(at, x.xyz, acc);
+}
