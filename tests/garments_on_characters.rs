@@ -2,7 +2,7 @@
 //! mannequin raising its arms never sinks more than half a shell particle radius into the body's
 //! particle layer; the shell cache is reused by the second bake; a ball thrown through a curtain
 //! faster than its shell is thick catches (and tears) the cloth with the swept test, and
-//! swallows it without; the GPU resolves shells as the CPU does, with collision passes and for a
+//! swallows it without (the report's count against the ball's own mesh agrees); the GPU resolves shells as the CPU does, with collision passes and for a
 //! character whose topology changes too.
 
 mod common;
@@ -198,7 +198,7 @@ fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_
         )
         .unwrap();
     }
-    let inside_per_frame = |swept: bool| -> (Vec<usize>, u64) {
+    let inside_per_frame = |swept: bool| -> (Vec<usize>, u64, Vec<u64>) {
         let text = format!(
             r#"{{ "frames": 8, "backend": "cpu", "gravity": [0, 0, 0], "swept_collisions": {swept},
                   "garments": [{{ "name": "curtain", "resolution": [31, 31], "size": [1, 1],
@@ -234,10 +234,28 @@ fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_
                     .count()
             })
             .collect();
-        (inside, report["torn_springs"].as_u64().unwrap())
+        // The report's count against the ball's own mesh (within 5 cm of its surface).
+        let in_mesh = report["mesh_penetrations_per_frame"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f["inside"][0].as_u64().unwrap())
+            .collect();
+        (inside, report["torn_springs"].as_u64().unwrap(), in_mesh)
     };
-    let (swept, torn_swept) = inside_per_frame(true);
-    let (plain, torn_plain) = inside_per_frame(false);
+    let (swept, torn_swept, swept_mesh) = inside_per_frame(true);
+    let (plain, torn_plain, plain_mesh) = inside_per_frame(false);
+    eprintln!("inside the ball's mesh per frame (report): swept {swept_mesh:?}, end point only {plain_mesh:?}");
+    // The mesh is inscribed in the sphere: it never counts more than the sphere holds, sees the
+    // swallowed cloth, and nothing with the swept test.
+    for (mesh, sphere) in plain_mesh.iter().zip(&plain) {
+        assert!(
+            *mesh as usize <= *sphere,
+            "{plain_mesh:?} against {plain:?}"
+        );
+    }
+    assert!(plain_mesh.iter().any(|&n| n > 0), "{plain_mesh:?}");
+    assert!(swept_mesh.iter().all(|&n| n == 0), "{swept_mesh:?}");
     eprintln!(
         "particles inside the ball per frame: swept {swept:?} ({torn_swept} springs torn), \
          end point only {plain:?} ({torn_plain} torn)"

@@ -7,7 +7,7 @@ use crate::backend::Backend;
 use crate::collide;
 use crate::error::Result;
 use crate::export::sequence::BakeMeshes;
-use crate::report::{Failure, FramePenetrations, Report, Timing};
+use crate::report::{Failure, FramePenetrations, MeshPenetration, Report, Timing};
 use crate::sim::schedule::{self, StageTimes};
 use crate::sim::{metrics, Simulation};
 use std::time::Instant;
@@ -55,6 +55,7 @@ pub fn run(
 
         let measuring = Instant::now();
         let unstable = measure(sim, frame, &initial_energy, &mut worst, report);
+        measure_meshes(sim, meshes, baked as usize - 1, frame, report);
         if let Some(r) = &sim.residuals {
             residuals.push(r.clone());
         }
@@ -92,6 +93,43 @@ pub fn run(
         report.residuals = Some(residuals);
     }
     Ok(around)
+}
+
+/// Measures how many free garment particles lie inside each character's own mesh at baked frame
+/// `index` (shot frame `frame`), into `report`.
+fn measure_meshes(
+    sim: &Simulation,
+    meshes: &BakeMeshes,
+    index: usize,
+    frame: u32,
+    report: &mut Report,
+) {
+    let mut characters = meshes.characters_at(index).peekable();
+    if characters.peek().is_none() {
+        return;
+    }
+    let free: Vec<glam::Vec3> = sim.free_positions().iter().map(|p| p.truncate()).collect();
+    let mut this = FramePenetrations {
+        frame,
+        inside: Vec::new(),
+        deepest_m: Vec::new(),
+    };
+    for (c, (name, vertices, triangles)) in characters.enumerate() {
+        let normals = crate::export::obj::vertex_normals(triangles, vertices);
+        let p = collide::mesh::penetration(vertices, triangles, &normals, &free);
+        this.inside.push(p.inside);
+        this.deepest_m.push(p.deepest);
+        if report.worst_mesh_penetrations.len() <= c {
+            report.worst_mesh_penetrations.push(MeshPenetration {
+                character: name.to_string(),
+                penetration: collide::Penetration::default(),
+            });
+        }
+        let worst = &mut report.worst_mesh_penetrations[c].penetration;
+        worst.inside = worst.inside.max(p.inside);
+        worst.deepest = worst.deepest.max(p.deepest);
+    }
+    report.mesh_penetrations_per_frame.push(this);
 }
 
 /// Measures frame `frame`: strain, penetrations (into `report` and the worst so far in `worst`)

@@ -59,6 +59,8 @@ pub(super) fn empty_report(
         worst_frame: None,
         worst_penetrations: Vec::new(),
         penetrations_per_frame: Vec::new(),
+        worst_mesh_penetrations: Vec::new(),
+        mesh_penetrations_per_frame: Vec::new(),
         torn_springs: 0,
         stable: true,
         failure: None,

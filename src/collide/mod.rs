@@ -6,6 +6,7 @@
 //! motion smaller than μ × the push is removed (static friction), larger motion is shortened by
 //! μ × the push (kinetic friction), as position-based friction does (Macklin et al. 2014, §6.1).
 
+pub mod mesh;
 pub mod particles;
 pub mod shell;
 

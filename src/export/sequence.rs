@@ -284,6 +284,17 @@ impl BakeMeshes {
         }
     }
 
+    /// Every character shown, at baked frame `index`: name, vertices, faces.
+    pub fn characters_at(
+        &self,
+        index: usize,
+    ) -> impl Iterator<Item = (&str, &[Vec3], &[[u32; 3]])> {
+        self.characters.iter().map(move |c| {
+            let frame = &c.frames[if c.frames.len() == 1 { 0 } else { index + 1 }];
+            (c.name.as_str(), &frame[..], &c.triangles[..])
+        })
+    }
+
     /// Each garment's surface from the particles (export order), in garment order.
     pub fn garment_surfaces(&self, particles: &[Vec3]) -> Vec<Vec<Vec3>> {
         self.garments

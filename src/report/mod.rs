@@ -46,6 +46,12 @@ pub struct Report {
     /// Every baked frame's penetrations: per collider (the scene's `colliders`, then the
     /// characters), the particles inside and the deepest of them [m].
     pub penetrations_per_frame: Vec<FramePenetrations>,
+    /// Per character shown in the exports, the most garment particles inside its own mesh at
+    /// once and the deepest [m] over the bake (measured against its triangles, not its shell).
+    pub worst_mesh_penetrations: Vec<MeshPenetration>,
+    /// Every baked frame's particles inside each character's mesh (in `worst_mesh_penetrations`
+    /// order) and the deepest [m]; empty without characters.
+    pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
     /// Springs broken by tearing over the bake.
     pub torn_springs: usize,
     pub stable: bool,
@@ -197,6 +203,14 @@ pub struct FrameMetrics {
 pub struct ColliderPenetration {
     /// Index in the scene's `colliders`, then the `characters` after them.
     pub collider: usize,
+    #[serde(flatten)]
+    pub penetration: Penetration,
+}
+
+/// Garment particles inside one character's own mesh.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeshPenetration {
+    pub character: String,
     #[serde(flatten)]
     pub penetration: Penetration,
 }
