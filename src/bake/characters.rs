@@ -23,6 +23,8 @@ pub fn shell_cache_dir() -> PathBuf {
 
 /// Loads the scene's characters and their collision shells over the bake's frames, reusing a
 /// shell cache whose inputs have not changed.
+// Long: per character in turn its frames, its shell (cached or built) and its export mesh,
+// which share the loaded frames.
 pub fn load_characters(
     scene: &Scene,
     cache_dir: &Path,

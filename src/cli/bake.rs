@@ -31,6 +31,8 @@ fn stop_on_signals() {
     }
 }
 
+// Long: the command in order (scene, flags folded in, bake, the summary it prints), each step a
+// few lines.
 pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     let (mut scene, scene_file) = resolve::scene(&args.scene)?;
     if let Some(b) = args.backend {

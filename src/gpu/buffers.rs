@@ -402,6 +402,7 @@ fn shell_layout(sim: &Simulation) -> (Vec<GpuShellInfo>, u32, u32) {
 }
 
 impl ContactGroup {
+    // Long: the thirteen buffers of group 2, each made and bound by name.
     pub fn new(device: &wgpu::Device, kernels: &Kernels, sim: &Simulation) -> ContactGroup {
         let n = sim.model().particle_count();
         let buffer = |label: &str, bytes: &[u8], usage| init(device, label, bytes, usage);

@@ -134,7 +134,8 @@ pub(super) struct Pipelines {
 }
 
 impl Pipelines {
-    /// Builds them over the per-frame `globals`, the per-draw `draws` slots and the shadow map.
+    /// Builds them over the per-frame `globals`, the per-draw `draws` slots and the shadow map
+    /// (long: three bind group layouts and their groups, each mostly wgpu's required fields).
     pub(super) fn new(
         device: &wgpu::Device,
         globals: &wgpu::Buffer,
