@@ -70,6 +70,24 @@ fn poncho_holds_at(substeps: u32, rim_above: f32) {
         centre.y > rim_above && centre.x.abs() < 0.1,
         "rim centre {centre}"
     );
+    // On both shoulders: the cloth above the chest (within 0.25 m below the rim) lies on
+    // either side of the neck in like measure, not hanging from one shoulder.
+    let (mut left, mut right) = (0usize, 0usize);
+    for p in &result.positions {
+        if p.y > centre.y - 0.25 {
+            if p.x < centre.x - 0.08 {
+                left += 1;
+            } else if p.x > centre.x + 0.08 {
+                right += 1;
+            }
+        }
+    }
+    eprintln!("particles over the left shoulder {left}, over the right {right}");
+    let (few, many) = (left.min(right) as f32, left.max(right) as f32);
+    assert!(
+        few > 100.0 && few > 0.5 * many,
+        "left {left}, right {right}"
+    );
 }
 
 #[test]
