@@ -10,6 +10,7 @@
 
 use super::Penetration;
 use glam::{IVec3, Vec3};
+use rayon::prelude::*;
 use std::collections::HashMap;
 
 /// How far from the surface a point is looked at [m].
@@ -79,10 +80,9 @@ pub fn penetration(
             }
         }
     }
-    let mut out = Penetration::default();
-    for &p in points {
+    let depth = |p: Vec3| -> f32 {
         let Some(candidates) = grid.get(&cell_of(p)) else {
-            continue;
+            return 0.0;
         };
         let mut best = (REACH * REACH, None);
         for &t in candidates {
@@ -96,15 +96,22 @@ pub fn penetration(
             }
         }
         let Some((q, w, [i, j, k])) = best.1 else {
-            continue;
+            return 0.0;
         };
         let n = normals[i as usize] * w.x + normals[j as usize] * w.y + normals[k as usize] * w.z;
         if (p - q).dot(n) < 0.0 {
-            out.inside += 1;
-            out.deepest = out.deepest.max(best.0.sqrt());
+            // At least a hair deep, so a point exactly on the surface behind it still counts.
+            best.0.sqrt().max(f32::MIN_POSITIVE)
+        } else {
+            0.0
         }
-    }
-    out
+    };
+    // A count and a maximum: the same on any number of threads.
+    points
+        .par_iter()
+        .with_min_len(1024)
+        .map(|&p| Penetration::of_depth(depth(p)))
+        .reduce(Penetration::default, Penetration::merge)
 }
 
 #[cfg(test)]

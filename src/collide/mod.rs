@@ -134,6 +134,24 @@ pub struct Penetration {
     pub deepest: f32,
 }
 
+impl Penetration {
+    /// One particle `depth` inside (none when it is not above zero).
+    pub fn of_depth(depth: f32) -> Penetration {
+        Penetration {
+            inside: (depth > 0.0) as usize,
+            deepest: depth.max(0.0),
+        }
+    }
+
+    /// Both counts together: the sum of the particles inside, the deeper of the two.
+    pub fn merge(a: Penetration, b: Penetration) -> Penetration {
+        Penetration {
+            inside: a.inside + b.inside,
+            deepest: a.deepest.max(b.deepest),
+        }
+    }
+}
+
 impl Collider {
     /// Builds a collider from its (validated) scene spec.
     pub fn from_spec(spec: &ColliderSpec) -> Collider {
@@ -195,6 +213,15 @@ impl Collider {
         }
     }
 
+    /// True when [`Collider::distance`] is the exact distance to the surface (planes, spheres,
+    /// capsules), so it changes no faster than the point moves.
+    fn exact(&self) -> bool {
+        matches!(
+            self.shape,
+            Shape::Plane { .. } | Shape::Sphere { .. } | Shape::Capsule { .. }
+        )
+    }
+
     /// Signed distance of `p` from the surface (negative inside) and the outward normal there.
     #[inline]
     pub fn distance(&self, p: Vec3) -> (f32, Vec3) {
@@ -240,6 +267,15 @@ impl Collider {
     #[inline]
     pub fn resolve(&self, x: Vec4, delta: Vec4, radius: f32) -> Vec4 {
         let mut delta = delta;
+        if self.swept && self.exact() {
+            // Farther from the surface than the path is long: no point of it comes within
+            // `radius` (an exact distance changes no faster than the point moves), so neither
+            // test below can act: the answer they give, without their second distance.
+            let (x3, d3) = (x.truncate(), delta.truncate());
+            if self.distance(x3 + self.moved).0 - radius >= (d3 - self.moved).length() {
+                return delta;
+            }
+        }
         if self.swept {
             if let Some(s) = self.first_contact(x.truncate(), delta.truncate(), radius) {
                 // Stop at the touching point of the path, carried along with the collider.

@@ -16,6 +16,7 @@
 //! over the skin never crosses it and is never stopped.
 
 use glam::{IVec3, Vec3, Vec4};
+use rayon::prelude::*;
 
 /// Values per frame at fractional frame `f`, linear between frames (the last frame holds; a
 /// frame whose count differs from the next holds too).
@@ -25,7 +26,8 @@ fn interpolate(frames: &[Vec<Vec3>], f: f32) -> Vec<Vec3> {
     out
 }
 
-/// [`interpolate`] into `out`, reusing its memory.
+/// [`interpolate`] into `out`, reusing its memory; large shells on every thread of the pool
+/// (each element on its own: the same numbers on any number of threads).
 fn interpolate_into(frames: &[Vec<Vec3>], f: f32, out: &mut Vec<Vec3>) {
     let k = (f.floor().max(0.0) as usize).min(frames.len() - 1);
     let j = (k + 1).min(frames.len() - 1);
@@ -35,8 +37,16 @@ fn interpolate_into(frames: &[Vec<Vec3>], f: f32, out: &mut Vec<Vec3>) {
         out.extend_from_slice(&frames[k]);
         return;
     }
-    out.extend(frames[k].iter().zip(&frames[j]).map(|(a, b)| a.lerp(*b, w)));
+    let (a, b) = (&frames[k], &frames[j]);
+    if a.len() < PARALLEL_FROM {
+        out.extend(a.iter().zip(b).map(|(a, b)| a.lerp(*b, w)));
+    } else {
+        out.par_extend(a.par_iter().zip(b).map(|(a, b)| a.lerp(*b, w)));
+    }
 }
+
+/// Shells of at least this many particles are advanced on every thread of the pool.
+const PARALLEL_FROM: usize = 4096;
 
 /// A shell at the end of a substep as the GPU reads it: per particle (position, motion,
 /// normal), then the grid's bucket starts and items.
@@ -159,10 +169,12 @@ impl HashGrid {
         self.cell = cell;
         self.start.clear();
         self.start.resize(buckets + 1, 0);
-        let keys: Vec<usize> = points
-            .iter()
-            .map(|&p| bucket((p / cell).floor().as_ivec3(), buckets))
-            .collect();
+        let key = |p: &Vec3| bucket((*p / cell).floor().as_ivec3(), buckets);
+        let keys: Vec<usize> = if points.len() < PARALLEL_FROM {
+            points.iter().map(key).collect()
+        } else {
+            points.par_iter().map(key).collect()
+        };
         for &k in &keys {
             self.start[k + 1] += 1;
         }
@@ -261,6 +273,12 @@ impl ShellCollider {
     /// Moves the shell to the end of a substep spanning fractional frames `from` → `to`, and
     /// rebuilds the grid for garment particles of contact radius up to `garment_radius`.
     pub fn advance(&mut self, from: f32, to: f32, garment_radius: f32) {
+        // A shell that never moves (one frame: a stool) stays where its first substep put it,
+        // with its grid.
+        if self.frames.len() == 1 && self.now_at.is_some() {
+            self.now_at = Some(to);
+            return;
+        }
         // Substeps follow one another: where the last one ended (`now`) is where this one
         // starts, so its positions are reused rather than interpolated again; buffers are kept.
         let mut before = std::mem::take(&mut self.before);
@@ -271,16 +289,25 @@ impl ShellCollider {
         }
         interpolate_into(&self.frames, to, &mut self.now);
         self.now_at = Some(to);
+        let parallel = self.now.len() >= PARALLEL_FROM;
         if !self.normals.is_empty() {
             interpolate_into(&self.normals, to, &mut self.now_normal);
-            self.now_normal
-                .iter_mut()
-                .for_each(|n| *n = n.normalize_or(Vec3::Y));
+            let unit = |n: &mut Vec3| *n = n.normalize_or(Vec3::Y);
+            if parallel {
+                self.now_normal.par_iter_mut().for_each(unit);
+            } else {
+                self.now_normal.iter_mut().for_each(unit);
+            }
         }
         self.motion.clear();
         if before.len() == self.now.len() {
-            let moved = self.now.iter().zip(&before).map(|(a, b)| *a - *b);
-            self.motion.extend(moved);
+            if parallel {
+                let moved = self.now.par_iter().zip(&before).map(|(a, b)| *a - *b);
+                self.motion.par_extend(moved);
+            } else {
+                let moved = self.now.iter().zip(&before).map(|(a, b)| *a - *b);
+                self.motion.extend(moved);
+            }
         } else {
             self.motion.resize(self.now.len(), Vec3::ZERO);
         }
@@ -497,8 +524,7 @@ impl ShellCollider {
     /// a contact [m] (contact distance minus centre distance), over particles closer than the
     /// shell radius to a shell particle centre.
     pub fn penetration(&self, q: &[Vec4]) -> super::Penetration {
-        let mut out = super::Penetration::default();
-        for p in q {
+        let depth = |p: &Vec4| {
             let p = p.truncate();
             let mut deepest = 0.0f32;
             self.grid.near(p, |i| {
@@ -507,12 +533,13 @@ impl ShellCollider {
                     deepest = deepest.max(self.radius - d);
                 }
             });
-            if deepest > 0.0 {
-                out.inside += 1;
-                out.deepest = out.deepest.max(deepest);
-            }
-        }
-        out
+            deepest
+        };
+        // A count and a maximum: the same on any number of threads.
+        q.par_iter()
+            .with_min_len(1024)
+            .map(|p| super::Penetration::of_depth(depth(p)))
+            .reduce(super::Penetration::default, super::Penetration::merge)
     }
 
     /// The longest distance a shell particle moved over the current substep [m].
