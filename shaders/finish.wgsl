@@ -3,6 +3,13 @@
 // The collision functions it calls are in `colliders.wgsl` and `shells.wgsl`, which mirror
 // `src/collide/`; this file holds the stages of `src/sim/` that use them.
 
+// False in the pipelines for scenes without characters (or without analytic colliders): that
+// code is compiled out (`gpu::Kernels::new`). Unreached, it still cost: its large private
+// arrays and loops made `finish` of scene H on lavapipe 2 869 ms per frame, 182 ms without
+// (docs/benchmarks.md), and they are register pressure on any GPU.
+override SHELLS: bool = true;
+override COLLIDERS: bool = true;
+
 fn tether_correction(offset: vec4<f32>, rest: f32) -> vec4<f32> {
     let len2 = dot(offset, offset);
     if (len2 > rest * rest) {
@@ -27,10 +34,10 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
         let t = tethers[k];
         d = d + tether_correction((xi - x[t.pin]) + (d - target_delta[t.pin]), t.rest);
     }
-    for (var c = 0u; c < params.colliders; c = c + 1u) {
+    for (var c = 0u; COLLIDERS && c < params.colliders; c = c + 1u) {
         d = collider_resolve(colliders[params.collider_base + c], xi, d, particle[i].contact_radius);
     }
-    for (var s = 0u; s < contacts.shells; s = s + 1u) {
+    for (var s = 0u; SHELLS && s < contacts.shells; s = s + 1u) {
         // With collision passes, list the shell particles near i for the next ones.
         let list = select(NO_LIST, (s * params.particles + i) * NEARBY, contacts.nearby != 0u);
         d = shell_resolve(s, params.range_start, xi, d, particle[i].contact_radius, list);
@@ -57,10 +64,10 @@ fn contact_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let xi = x[i];
     var d = delta[i];
     let radius = particle[i].contact_radius;
-    for (var c = 0u; c < params.colliders; c = c + 1u) {
+    for (var c = 0u; COLLIDERS && c < params.colliders; c = c + 1u) {
         d = collider_resolve(colliders[params.collider_base + c], xi, d, radius);
     }
-    for (var s = 0u; s < contacts.shells; s = s + 1u) {
+    for (var s = 0u; SHELLS && s < contacts.shells; s = s + 1u) {
         d = shell_resolve_nearby(s, params.range_start, xi, d, radius, (s * params.particles + i) * NEARBY);
     }
     delta[i] = d;

@@ -298,3 +298,37 @@ fn moving_and_turned_colliders_match() {
         "the cloth should rest on the box"
     );
 }
+
+/// `stages_ms` on the GPU backend: where the device has timestamps inside passes (lavapipe has
+/// them), every stage a frame runs gets GPU time, and the stages it does not run get none.
+#[test]
+fn gpu_stages_are_timed_where_the_device_has_timestamps() {
+    let Some(ctx) = context() else {
+        eprintln!("skipped: no GPU adapter");
+        return;
+    };
+    let timestamps = ctx.timestamps();
+    let scene = common::scene(
+        r#"{ "frames": 2, "substeps": 4, "garments": [{ "resolution": [12, 12], "pins": [[0, 0]] }] }"#,
+    );
+    let mut sim = Simulation::new(&scene);
+    let mut gpu = GpuSimulation::new(ctx, &sim).expect("GPU simulation");
+    gpu.step_frame(&mut sim).expect("a frame");
+    let t = &sim.stage_times.seconds;
+    let of = |name| t[drape::sim::schedule::timed(name)];
+    eprintln!(
+        "timestamps {timestamps}: {:?}",
+        drape::sim::schedule::TIMED
+            .iter()
+            .zip(t)
+            .collect::<Vec<_>>()
+    );
+    if timestamps {
+        for name in ["predict", "solve", "finish"] {
+            assert!(of(name) > 0.0, "{name} untimed: {t:?}");
+        }
+    }
+    for name in ["contact_pass", "particle_collisions"] {
+        assert_eq!(of(name), 0.0, "{name} does not run here");
+    }
+}

@@ -6,6 +6,10 @@
 
 use crate::error::{Error, Result};
 
+/// The features that time a frame's stages on the GPU.
+const STAGE_TIMESTAMPS: wgpu::Features =
+    wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES);
+
 /// Storage buffers one kernel binds (shaders/common.wgsl group 0, the residual group and the
 /// group of particle collisions, attachments and characters' shells).
 pub const STORAGE_BUFFERS_NEEDED: u32 = 28;
@@ -76,7 +80,8 @@ impl GpuContext {
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("drape"),
-            required_features: wgpu::Features::empty(),
+            // Timestamps between a frame's stages, where the adapter has them (`stages_ms`).
+            required_features: adapter.features() & STAGE_TIMESTAMPS,
             required_limits: limits,
             ..Default::default()
         }))
@@ -88,6 +93,11 @@ impl GpuContext {
             queue,
             adapter: info,
         })
+    }
+
+    /// True when the device can time the stages of a frame (timestamps inside a pass).
+    pub fn timestamps(&self) -> bool {
+        self.device.features().contains(STAGE_TIMESTAMPS)
     }
 
     /// "name (type)" for messages and reports.

@@ -86,6 +86,9 @@ pub struct Kernels {
     pub jacobi: wgpu::ComputePipeline,
     pub copy_scratch: wgpu::ComputePipeline,
     pub pbd: wgpu::ComputePipeline,
+    /// `finish` and `contact_pass` compiled for what the scene collides with: the code for what
+    /// it lacks is compiled out (the WGSL `override`s `SHELLS` and `COLLIDERS`), so a kernel
+    /// never pays for collisions it cannot have.
     pub finish: wgpu::ComputePipeline,
     pub finish_static: wgpu::ComputePipeline,
     pub attach: wgpu::ComputePipeline,
@@ -115,7 +118,9 @@ fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 
 impl Kernels {
     /// Compiles every kernel for `device`.
-    pub fn new(device: &wgpu::Device) -> Kernels {
+    /// Compiles every kernel, `finish` and `contact_pass` for a scene with characters' shells
+    /// (`shells`) and analytic colliders (`colliders`) or without.
+    pub fn new(device: &wgpu::Device, shells: bool, colliders: bool) -> Kernels {
         let mut entries = vec![wgpu::BindGroupLayoutEntry {
             binding: 0,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -171,7 +176,8 @@ impl Kernels {
                 (*file, module)
             })
             .collect();
-        let pipeline = |entry: &str| {
+        // `constants`: values of the kernels' `override` constants.
+        let specialised = |entry: &str, constants: &[(&str, f64)]| {
             let (file, _, _) = KERNEL_FILES
                 .iter()
                 .find(|(_, _, entries)| entries.contains(&entry))
@@ -186,10 +192,17 @@ impl Kernels {
                 layout: Some(&layout),
                 module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             })
         };
+        let pipeline = |entry: &str| specialised(entry, &[]);
+        let on = |present: bool| if present { 1.0 } else { 0.0 };
+        let collisions = [("SHELLS", on(shells)), ("COLLIDERS", on(colliders))];
+        let specialised_for_scene = |entry: &str| specialised(entry, &collisions);
         Kernels {
             predict: pipeline("predict"),
             project: pipeline("project"),
@@ -197,10 +210,10 @@ impl Kernels {
             jacobi: pipeline("jacobi"),
             copy_scratch: pipeline("copy_scratch"),
             pbd: pipeline("pbd"),
-            finish: pipeline("finish"),
+            finish: specialised_for_scene("finish"),
             finish_static: pipeline("finish_static"),
             attach: pipeline("attach"),
-            contact_pass: pipeline("contact_pass"),
+            contact_pass: specialised_for_scene("contact_pass"),
             residual_partial: pipeline("residual_partial"),
             residual_total: pipeline("residual_total"),
             pc_clear: pipeline("pc_clear"),

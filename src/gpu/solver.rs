@@ -30,6 +30,8 @@ pub struct GpuSimulation {
     residual: ResidualGroup,
     contact: ContactGroup,
     has_shells: bool,
+    /// Timestamps between the stages of a frame, when the device has them.
+    clock: Option<StageClock>,
     particles: u32,
     springs: u32,
     structural: u32,
@@ -128,7 +130,13 @@ fn groups(count: u32, size: u32) -> u32 {
 impl GpuSimulation {
     /// Uploads `sim`'s model and state to the GPU of `ctx`.
     pub fn new(ctx: GpuContext, sim: &Simulation) -> Result<GpuSimulation> {
-        let kernels = Kernels::new(&ctx.device);
+        // Tearing (the one reload) changes neither the shells nor the colliders: these kernels
+        // serve every reload.
+        let kernels = Kernels::new(
+            &ctx.device,
+            !sim.shells.is_empty(),
+            !sim.colliders.is_empty(),
+        );
         GpuSimulation::with_kernels(ctx, kernels, sim)
     }
 
@@ -149,8 +157,10 @@ impl GpuSimulation {
         let state = StateGroup::new(device, &kernels, sim);
         let residual = ResidualGroup::new(device, &kernels, sim, REDUCE_GROUP);
         let contact = ContactGroup::new(device, &kernels, sim);
+        let clock = StageClock::new(&ctx, sim);
         Ok(GpuSimulation {
             has_shells: !sim.shells.is_empty(),
+            clock,
             particles: model.particle_count() as u32,
             springs: model.springs.len() as u32,
             structural: model.structural_springs as u32,
@@ -272,6 +282,9 @@ impl GpuSimulation {
             }
         }
         self.residual.readback.unmap();
+        if let Some(c) = &self.clock {
+            c.read(&self.ctx, &mut sim.stage_times)?;
+        }
         Ok(())
     }
 
@@ -301,9 +314,18 @@ impl GpuSimulation {
              count: u32,
              size: u32| self.dispatch(pass, pipeline, slot, count, size);
         let k = &self.kernels;
+        let mut stamp = 0;
+        let mut tick = |pass: &mut wgpu::ComputePass| {
+            if let Some(c) = &self.clock {
+                pass.write_timestamp(&c.queries, stamp);
+                stamp += 1;
+            }
+        };
+        tick(&mut pass);
         if integrating {
             dispatch(&mut pass, &k.predict, PARAMS_NEXT, n, GROUP);
         }
+        tick(&mut pass);
         // The substep's stages as the CPU runs them (`sim::schedule`).
         let schedule = sim.schedule();
         for substep in 0..sim.substeps {
@@ -360,9 +382,14 @@ impl GpuSimulation {
                         }
                     }
                 }
+                tick(&mut pass);
             }
         }
         drop(pass);
+        if let Some(c) = &self.clock {
+            encoder.resolve_query_set(&c.queries, 0..c.stages.len() as u32 + 1, &c.resolved, 0);
+            encoder.copy_buffer_to_buffer(&c.resolved, 0, &c.readback, 0, c.readback.size());
+        }
         encoder
     }
 
@@ -419,5 +446,87 @@ impl GpuSimulation {
             }
             residual(pass);
         }
+    }
+}
+
+/// Timestamps written between the stages of a frame (`Features::TIMESTAMP_QUERY_INSIDE_PASSES`):
+/// one before the prediction, one after it and one after each stage of each substep; the
+/// differences go to the stages' clocks (`stages_ms`), read back with the frame.
+struct StageClock {
+    queries: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// The timed stage of each interval between two timestamps.
+    stages: Vec<usize>,
+    /// Nanoseconds per tick.
+    period: f64,
+}
+
+impl StageClock {
+    /// A clock for `sim`'s frames, when the device has timestamps and a frame needs no more
+    /// than a query set holds.
+    fn new(ctx: &GpuContext, sim: &Simulation) -> Option<StageClock> {
+        if !ctx.timestamps() {
+            return None;
+        }
+        let mut stages = vec![crate::sim::schedule::timed("predict")];
+        for _ in 0..sim.substeps {
+            stages.extend(sim.schedule().iter().map(|s| s.timed()));
+        }
+        let count = stages.len() as u32 + 1;
+        if count > wgpu::QUERY_SET_MAX_QUERIES {
+            return None;
+        }
+        let device = &ctx.device;
+        let bytes = count as u64 * wgpu::QUERY_SIZE as u64;
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Some(StageClock {
+            queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("stage timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            }),
+            resolved: buffer(
+                "stage timestamps",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "stage timestamps readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            stages,
+            period: ctx.queue.get_timestamp_period() as f64,
+        })
+    }
+
+    /// Adds the last frame's stage times to `times`.
+    fn read(&self, ctx: &GpuContext, times: &mut crate::sim::schedule::StageTimes) -> Result<()> {
+        let slice = self.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu {
+                reason: format!("{}: {e}", ctx.adapter.name),
+            })?;
+        {
+            let view = slice.get_mapped_range().map_err(|e| Error::Gpu {
+                reason: format!("stage timestamps: {e:?}"),
+            })?;
+            let ticks: &[u64] = bytemuck::cast_slice(&view);
+            for (stage, pair) in self.stages.iter().zip(ticks.windows(2)) {
+                // Timestamps are not promised to increase (a GPU may reorder within a pass).
+                let ns = pair[1].saturating_sub(pair[0]) as f64 * self.period;
+                times.seconds[*stage] += ns * 1e-9;
+            }
+        }
+        self.readback.unmap();
+        Ok(())
     }
 }
