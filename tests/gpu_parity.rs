@@ -300,7 +300,8 @@ fn moving_and_turned_colliders_match() {
 }
 
 /// `stages_ms` on the GPU backend: where the device has timestamps inside passes (lavapipe has
-/// them), every stage a frame runs gets GPU time, and the stages it does not run get none.
+/// them, though a software adapter times its stages only when asked), every stage a frame runs
+/// gets GPU time, and the stages it does not run get none.
 #[test]
 fn gpu_stages_are_timed_where_the_device_has_timestamps() {
     let Some(ctx) = context() else {
@@ -313,6 +314,7 @@ fn gpu_stages_are_timed_where_the_device_has_timestamps() {
     );
     let mut sim = Simulation::new(&scene);
     let mut gpu = GpuSimulation::new(ctx, &sim).expect("GPU simulation");
+    assert_eq!(gpu.time_stages(&sim, true), timestamps);
     gpu.step_frame(&mut sim).expect("a frame");
     let t = &sim.stage_times.seconds;
     let of = |name| t[drape::sim::schedule::timed(name)];

@@ -157,7 +157,11 @@ impl GpuSimulation {
         let state = StateGroup::new(device, &kernels, sim);
         let residual = ResidualGroup::new(device, &kernels, sim, REDUCE_GROUP);
         let contact = ContactGroup::new(device, &kernels, sim);
-        let clock = StageClock::new(&ctx, sim);
+        // Software adapters' timestamps overlap (lavapipe: their sum exceeds the frame's wall
+        // time) and cost it a tenth of P's frame: timed there only when asked.
+        let clock = (ctx.adapter.device_type != wgpu::DeviceType::Cpu)
+            .then(|| StageClock::new(&ctx, sim))
+            .flatten();
         Ok(GpuSimulation {
             has_shells: !sim.shells.is_empty(),
             clock,
@@ -175,6 +179,18 @@ impl GpuSimulation {
             residual,
             contact,
         })
+    }
+
+    /// Times the stages of each frame on the GPU (into the simulation's `stage_times`), when
+    /// the device has timestamps inside passes; by default on for hardware adapters only.
+    /// Returns whether the stages are timed.
+    pub fn time_stages(&mut self, sim: &Simulation, on: bool) -> bool {
+        self.clock = if on {
+            StageClock::new(&self.ctx, sim)
+        } else {
+            None
+        };
+        self.clock.is_some()
     }
 
     /// The adapter's "name (type)".
