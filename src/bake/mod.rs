@@ -120,7 +120,7 @@ pub fn check_disk(scene: &Scene, vertices: u64, file: &str, out: &Path) -> Resul
 }
 
 /// About how many bytes a bake of `scene` writes with `vertices` vertices per frame.
-fn output_bytes(scene: &Scene, vertices: u64) -> u64 {
+pub fn output_bytes(scene: &Scene, vertices: u64) -> u64 {
     let spec = &scene.output;
     let frames = scene.frames as u64;
     // Bytes per vertex and frame: OBJ text (v, vt, vn lines and about two faces), glTF

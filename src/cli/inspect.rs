@@ -23,6 +23,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         .map(|g| g.uvs.len().max(g.particle_count()) as u64)
         .sum();
     drape::bake::check_disk(&scene, vertices, &file, std::path::Path::new("."))?;
+    let files = drape::bake::output_bytes(&scene, vertices);
     let model = Model::new(&garments);
     println!("scene '{}' ({file}): valid", scene.name);
     println!(
@@ -96,6 +97,11 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         model.particle_count(),
         model.springs.len(),
         model.memory_bytes() as f64 / (1024.0 * 1024.0)
+    );
+    println!(
+        "  outputs: about {:.1} MB written over {} frames (garments; characters add theirs)",
+        files as f64 / 1e6,
+        scene.frames
     );
     Ok(0)
 }
