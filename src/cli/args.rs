@@ -25,6 +25,25 @@ pub enum Command {
     Mannequin(MannequinArgs),
     /// Render preview images of an existing bake (its glTF) into BAKE_DIR/preview.
     Render(RenderArgs),
+    /// Write a farm plan: one bake per wedge variant in DIR/jobs.txt, the variants' scenes, and
+    /// an Open Job Description template (DIR/job.yaml).
+    Plan(PlanArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    /// Scene file (JSON).
+    pub scene: PathBuf,
+    /// A scene field and the values to bake it with, e.g. `solver.iterations=5,10` or
+    /// `garments[0].mass=0.1,0.2`; several wedges make every combination.
+    #[arg(long, value_name = "FIELD=V1,V2,...")]
+    pub wedge: Vec<String>,
+    /// Split each bake into sequential tasks of N frames (needs checkpoints: not yet).
+    #[arg(long, allow_hyphen_values = true)]
+    pub chunk: Option<u32>,
+    /// Folder to write the plan into (created; must be empty or absent).
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 #[derive(Args, Debug)]

@@ -5,6 +5,7 @@ mod args;
 mod bake;
 mod bench;
 mod inspect;
+mod plan;
 mod render;
 mod resolve;
 mod shell;
@@ -21,5 +22,6 @@ pub fn run() -> anyhow::Result<i32> {
         args::Command::Shell(a) => shell::run(a),
         args::Command::Mannequin(a) => shell::mannequin(a),
         args::Command::Render(a) => render::run(a),
+        args::Command::Plan(a) => plan::run(a),
     }
 }

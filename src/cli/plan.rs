@@ -1,0 +1,308 @@
+//! `drape plan SCENE --wedge FIELD=V1,V2 … --out DIR`: a render-farm plan. Each combination of
+//! the wedges' values becomes a scene (`DIR/scenes/<name>.json`, the original with those fields
+//! set and its relative paths made absolute) and one bake command (a line of `DIR/jobs.txt`,
+//! which GNU parallel, a Slurm array or `bash` runs as it is); `DIR/job.yaml` is the same plan as
+//! an Open Job Description template, one task per variant. Every variant is validated before
+//! anything is written.
+
+use super::args::PlanArgs;
+use drape::scene::Scene;
+use drape::Error;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// One wedge: the field's path and its values.
+struct Wedge {
+    field: String,
+    values: Vec<Value>,
+}
+
+pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
+    if let Some(n) = args.chunk {
+        return Err(Error::InvalidArgument {
+            flag: "--chunk".into(),
+            reason: format!(
+                "{n}: chunked bakes resume each other's checkpoints, which drape does not write yet; plan whole bakes (without --chunk)"
+            ),
+        }
+        .into());
+    }
+    let file = args.scene.display().to_string();
+    // The original must be a valid scene on its own.
+    Scene::load(&args.scene)?;
+    let text = std::fs::read_to_string(&args.scene)
+        .map_err(|e| Error::io(&args.scene, "cannot read", e))?;
+    let original: Value =
+        serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| {
+            Error::InvalidField {
+                file: file.clone(),
+                field: "(top level)".into(),
+                reason: e.to_string(),
+            }
+        })?;
+    let base = args
+        .scene
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let base = std::path::absolute(base).map_err(|e| Error::io(base, "cannot resolve", e))?;
+    let wedges = args
+        .wedge
+        .iter()
+        .map(|w| parse_wedge(w))
+        .collect::<Result<Vec<_>, _>>()?;
+    let stem = original["name"]
+        .as_str()
+        .map(str::to_string)
+        .or_else(|| {
+            args.scene
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+        })
+        .unwrap_or_else(|| "scene".into());
+    let mut variants = Vec::new();
+    for combination in combinations(&wedges) {
+        let mut scene = absolute_paths(original.clone(), &base);
+        let mut name = stem.clone();
+        for (wedge, value) in wedges.iter().zip(&combination) {
+            set(&mut scene, &wedge.field, value.clone()).map_err(|reason| {
+                Error::InvalidArgument {
+                    flag: "--wedge".into(),
+                    reason: format!("{}: {reason}", wedge.field),
+                }
+            })?;
+            name.push_str(&format!(
+                "_{}-{}",
+                label(&wedge.field),
+                label(&value_text(value))
+            ));
+        }
+        scene["name"] = Value::String(name.clone());
+        let text = serde_json::to_string_pretty(&scene).expect("JSON serialises");
+        Scene::parse_in(&text, &format!("{file} ({name})"), &base).map_err(|e| {
+            Error::InvalidArgument {
+                flag: "--wedge".into(),
+                reason: format!("variant {name}: {e}"),
+            }
+        })?;
+        variants.push((name, text));
+    }
+    write_plan(&args.out, &stem, &variants)?;
+    println!(
+        "planned {} bake{} into {}: run them with `bash {}` (or GNU parallel, a Slurm array, OpenJD: docs/farm.md)",
+        variants.len(),
+        if variants.len() == 1 { "" } else { "s" },
+        args.out.display(),
+        args.out.join("jobs.txt").display()
+    );
+    Ok(0)
+}
+
+/// `FIELD=V1,V2,…`; each value JSON (a number, `true`, `"text"`) or else plain text.
+fn parse_wedge(text: &str) -> Result<Wedge, Error> {
+    let bad = |reason: &str| Error::InvalidArgument {
+        flag: "--wedge".into(),
+        reason: format!("{text:?}: {reason}"),
+    };
+    let (field, values) = text
+        .split_once('=')
+        .ok_or_else(|| bad("expected FIELD=V1,V2,… (e.g. solver.iterations=5,10)"))?;
+    if field.is_empty() || field.chars().any(char::is_whitespace) {
+        return Err(bad("the field is empty or has spaces"));
+    }
+    let values: Vec<Value> = values
+        .split(',')
+        .filter(|v| !v.is_empty())
+        .map(|v| serde_json::from_str(v).unwrap_or_else(|_| Value::String(v.to_string())))
+        .collect();
+    if values.is_empty() {
+        return Err(bad("no values"));
+    }
+    Ok(Wedge {
+        field: field.to_string(),
+        values,
+    })
+}
+
+/// Every combination of the wedges' values, the first wedge slowest.
+fn combinations(wedges: &[Wedge]) -> Vec<Vec<Value>> {
+    wedges.iter().fold(vec![Vec::new()], |acc, w| {
+        acc.iter()
+            .flat_map(|prefix| {
+                w.values.iter().map(move |v| {
+                    let mut c = prefix.clone();
+                    c.push(v.clone());
+                    c
+                })
+            })
+            .collect()
+    })
+}
+
+/// Sets `field` (`a.b`, `a[2].b`) of `scene` to `value`; objects on the way are created, arrays
+/// must have the element.
+fn set(scene: &mut Value, field: &str, value: Value) -> Result<(), String> {
+    let mut at = scene;
+    let parts: Vec<&str> = field.split('.').collect();
+    for (i, part) in parts.iter().enumerate() {
+        let (key, indices) = match part.find('[') {
+            Some(k) => (&part[..k], &part[k..]),
+            None => (*part, ""),
+        };
+        if key.is_empty() {
+            return Err(format!("{part:?} names no field"));
+        }
+        let object = at
+            .as_object_mut()
+            .ok_or_else(|| format!("{key} is not inside an object"))?;
+        let mut slot = object.entry(key.to_string()).or_insert(Value::Null);
+        for index in indices.split('[').filter(|s| !s.is_empty()) {
+            let n: usize = index
+                .strip_suffix(']')
+                .and_then(|n| n.parse().ok())
+                .ok_or_else(|| format!("{part:?}: expected an index like [0]"))?;
+            let len = slot.as_array().map_or(0, Vec::len);
+            slot = slot
+                .as_array_mut()
+                .and_then(|a| a.get_mut(n))
+                .ok_or_else(|| format!("{key} has {len} elements, no [{n}]"))?;
+        }
+        if i + 1 == parts.len() {
+            *slot = value;
+            return Ok(());
+        }
+        if slot.is_null() {
+            *slot = Value::Object(Default::default());
+        }
+        at = slot;
+    }
+    Ok(())
+}
+
+/// The scene with its characters' files and garments' meshes made absolute (the variants live
+/// in another folder).
+fn absolute_paths(mut scene: Value, base: &Path) -> Value {
+    let fix = |v: &mut Value| {
+        if let Some(p) = v.as_str() {
+            if Path::new(p).is_relative() {
+                *v = Value::String(base.join(p).display().to_string());
+            }
+        }
+    };
+    for (list, key) in [("characters", "file"), ("garments", "mesh")] {
+        if let Some(items) = scene.get_mut(list).and_then(Value::as_array_mut) {
+            for item in items {
+                if let Some(v) = item.get_mut(key) {
+                    fix(v);
+                }
+            }
+        }
+    }
+    scene
+}
+
+fn value_text(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+/// A piece of a file name: letters, digits, `.` and `-`; anything else becomes `_`.
+fn label(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// `text` quoted for a POSIX shell.
+fn quoted(text: &str) -> String {
+    format!("'{}'", text.replace('\'', r"'\''"))
+}
+
+/// Writes `DIR/scenes/*.json`, `DIR/jobs.txt` and `DIR/job.yaml` through a staging folder.
+fn write_plan(out: &Path, stem: &str, variants: &[(String, String)]) -> Result<(), Error> {
+    if out.exists()
+        && std::fs::read_dir(out)
+            .map(|mut d| d.next().is_some())
+            .unwrap_or(true)
+    {
+        return Err(Error::InvalidArgument {
+            flag: "--out".into(),
+            reason: format!("{} exists and is not empty", out.display()),
+        });
+    }
+    let out = std::path::absolute(out).map_err(|e| Error::io(out, "cannot resolve", e))?;
+    let name = out
+        .file_name()
+        .map_or("plan".into(), |n| n.to_string_lossy().into_owned());
+    let staging = out.with_file_name(format!(".{name}.plan-{}", std::process::id()));
+    let result = (|| {
+        let scenes = staging.join("scenes");
+        std::fs::create_dir_all(&scenes).map_err(|e| Error::io(&scenes, "cannot create", e))?;
+        let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("drape"));
+        let exe = exe.display().to_string();
+        let mut jobs = String::new();
+        for (name, text) in variants {
+            let path = scenes.join(format!("{name}.json"));
+            std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
+            let scene = out.join("scenes").join(format!("{name}.json"));
+            let bake = out.join("bakes").join(name);
+            jobs.push_str(&format!(
+                "{} bake {} --out {}\n",
+                quoted(&exe),
+                quoted(&scene.display().to_string()),
+                quoted(&bake.display().to_string())
+            ));
+        }
+        let jobs_path = staging.join("jobs.txt");
+        std::fs::write(&jobs_path, jobs).map_err(|e| Error::io(&jobs_path, "cannot write", e))?;
+        let yaml_path = staging.join("job.yaml");
+        std::fs::write(&yaml_path, openjd(&exe, &out, stem, variants))
+            .map_err(|e| Error::io(&yaml_path, "cannot write", e))?;
+        if out.exists() {
+            std::fs::remove_dir(&out).map_err(|e| Error::io(&out, "cannot replace", e))?;
+        }
+        std::fs::rename(&staging, &out).map_err(|e| Error::io(&out, "cannot create", e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&staging);
+    }
+    result
+}
+
+/// The plan as an Open Job Description job template (specification 2023-09): one step whose
+/// tasks range over the variants.
+fn openjd(exe: &str, out: &Path, stem: &str, variants: &[(String, String)]) -> String {
+    let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
+    let names: Vec<String> = variants.iter().map(|(n, _)| json(n)).collect();
+    let scenes = out.join("scenes").display().to_string();
+    let bakes = out.join("bakes").display().to_string();
+    format!(
+        "specificationVersion: 'jobtemplate-2023-09'\n\
+         name: {name}\n\
+         steps:\n\
+         - name: bake\n\
+         \x20 parameterSpace:\n\
+         \x20   taskParameterDefinitions:\n\
+         \x20   - name: Variant\n\
+         \x20     type: STRING\n\
+         \x20     range: [{range}]\n\
+         \x20 script:\n\
+         \x20   actions:\n\
+         \x20     onRun:\n\
+         \x20       command: {exe}\n\
+         \x20       args: ['bake', {scene}, '--out', {bake}]\n",
+        name = json(&format!("drape plan of {stem}")),
+        range = names.join(", "),
+        exe = json(exe),
+        scene = json(&format!("{scenes}/{{{{Task.Param.Variant}}}}.json")),
+        bake = json(&format!("{bakes}/{{{{Task.Param.Variant}}}}")),
+    )
+}
