@@ -1,7 +1,8 @@
 //! `drape plan`: a wedge of two fields becomes every combination as a scene and a bake line;
 //! running `jobs.txt` with plain `bash` gives the same frames (bit for bit, `frames_hash`) as
-//! baking the scene with the same values as flags; bad wedges, `--chunk` and a used folder are
-//! refused with exit 2 and nothing written.
+//! baking the scene with the same values as flags; with a character, `shells.txt` builds its
+//! shell once and every bake reuses it; bad wedges, `--chunk` and a used folder are refused with
+//! exit 2 and nothing written.
 
 mod common;
 
@@ -101,4 +102,54 @@ fn bad_plans_are_refused_and_write_nothing() {
     let out = common::drape(d, &["plan", "scene.json", "--out", "used"]);
     assert_eq!(out.status.code(), Some(2), "{}", common::stderr(&out));
     assert!(d.join("used/notes.txt").is_file());
+}
+
+#[test]
+fn a_plan_with_a_character_builds_its_shell_once_and_every_bake_reuses_it() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    let stool = Path::new(env!("CARGO_MANIFEST_DIR")).join("characters/mannequin/stool.obj");
+    common::write(
+        d,
+        "scene.json",
+        &format!(
+            r#"{{ "name": "onstool", "frames": 2, "backend": "cpu",
+                  "garments": [{{ "resolution": [10, 10], "size": [0.8, 0.8], "position": [0, 0.7, -0.46] }}],
+                  "characters": [{{ "name": "stool", "file": {:?} }}] }}"#,
+            stool.display().to_string()
+        ),
+    );
+    let out = common::drape(
+        d,
+        &[
+            "plan",
+            "scene.json",
+            "--wedge",
+            "solver.iterations=2,4",
+            "--out",
+            "plan",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let yaml = std::fs::read_to_string(d.join("plan/job.yaml")).unwrap();
+    assert!(yaml.contains("- name: shells") && yaml.contains("dependsOn: shells"));
+    for list in ["shells.txt", "jobs.txt"] {
+        let run = std::process::Command::new("bash")
+            .arg(d.join("plan").join(list))
+            .current_dir(d)
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{list}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let shells: Vec<_> = std::fs::read_dir(d.join("plan/shells")).unwrap().collect();
+    assert_eq!(shells.len(), 1, "one cache for both variants");
+    for bake in std::fs::read_dir(d.join("plan/bakes")).unwrap() {
+        let report = std::fs::read_to_string(bake.unwrap().path().join("report.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+        assert_eq!(report["characters"][0]["shell_cache"], "reused");
+    }
 }

@@ -85,7 +85,9 @@ pub struct MannequinArgs {
 /// A character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern.
 #[derive(Args, Debug)]
 pub struct CharacterArgs {
-    /// The character (e.g. walker.glb, frames/, frames/body_%04d.obj).
+    /// The character (e.g. walker.glb, frames/, frames/body_%04d.obj); or a scene (`.json`):
+    /// then every character's shell of that scene goes into the folder `--out`, exactly as its
+    /// bake with `--shell-cache` that folder would build it (the scene says how to load them).
     pub character: PathBuf,
     #[command(flatten)]
     pub look: CharacterLook,
@@ -199,6 +201,10 @@ pub struct BakeArgs {
     /// Worker threads (default: every core; more than the cores are clamped, with a warning).
     #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
+    /// Folder of characters' shell caches (default `$XDG_CACHE_HOME/drape`, else
+    /// `~/.cache/drape`); a farm plan's bakes share the one its `shells.txt` fills.
+    #[arg(long)]
+    pub shell_cache: Option<PathBuf>,
     /// Where to simulate, overriding the scene's `backend`: `gpu` takes any adapter (software
     /// ones too), `auto` a hardware GPU when there is one, else the CPU.
     #[arg(long, value_enum)]

@@ -65,7 +65,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         scene_file,
         threads: args.threads,
         progress: true,
-        shell_cache: None,
+        shell_cache: args.shell_cache.clone(),
     };
     stop_on_signals();
     let result = bake(&scene, &options)?;

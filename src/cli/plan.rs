@@ -1,15 +1,24 @@
 //! `drape plan SCENE --wedge FIELD=V1,V2 … --out DIR`: a render-farm plan. Each combination of
 //! the wedges' values becomes a scene (`DIR/scenes/<name>.json`, the original with those fields
 //! set and its relative paths made absolute) and one bake command (a line of `DIR/jobs.txt`,
-//! which GNU parallel, a Slurm array or `bash` runs as it is); `DIR/job.yaml` is the same plan as
-//! an Open Job Description template, one task per variant. Every variant is validated before
-//! anything is written.
+//! which GNU parallel, a Slurm array or `bash` runs as it is). With characters, a first step
+//! (`DIR/shells.txt`, `drape shell SCENE --out DIR/shells`) builds their shells into one cache
+//! folder that every bake then reuses (`--shell-cache`). `DIR/job.yaml` is the same plan as an
+//! Open Job Description template. Every variant is validated before anything is written.
 
 use super::args::PlanArgs;
 use drape::scene::Scene;
 use drape::Error;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
+
+/// One planned bake: its name, its scene's text, and whether it has characters (then its
+/// shells are built in a first step).
+struct Variant {
+    name: String,
+    text: String,
+    characters: bool,
+}
 
 /// One wedge: the field's path and its values.
 struct Wedge {
@@ -85,7 +94,14 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
                 reason: format!("variant {name}: {e}"),
             }
         })?;
-        variants.push((name, text));
+        let characters = scene["characters"]
+            .as_array()
+            .is_some_and(|c| !c.is_empty());
+        variants.push(Variant {
+            name,
+            text,
+            characters,
+        });
     }
     write_plan(&args.out, &stem, &variants)?;
     println!(
@@ -227,7 +243,7 @@ fn quoted(text: &str) -> String {
 }
 
 /// Writes `DIR/scenes/*.json`, `DIR/jobs.txt` and `DIR/job.yaml` through a staging folder.
-fn write_plan(out: &Path, stem: &str, variants: &[(String, String)]) -> Result<(), Error> {
+fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error> {
     if out.exists()
         && std::fs::read_dir(out)
             .map(|mut d| d.next().is_some())
@@ -248,21 +264,32 @@ fn write_plan(out: &Path, stem: &str, variants: &[(String, String)]) -> Result<(
         std::fs::create_dir_all(&scenes).map_err(|e| Error::io(&scenes, "cannot create", e))?;
         let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("drape"));
         let exe = exe.display().to_string();
-        let mut jobs = String::new();
-        for (name, text) in variants {
-            let path = scenes.join(format!("{name}.json"));
-            std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
-            let scene = out.join("scenes").join(format!("{name}.json"));
-            let bake = out.join("bakes").join(name);
-            jobs.push_str(&format!(
-                "{} bake {} --out {}\n",
-                quoted(&exe),
-                quoted(&scene.display().to_string()),
-                quoted(&bake.display().to_string())
-            ));
+        let (mut jobs, mut shells) = (String::new(), String::new());
+        let cache = quoted(&out.join("shells").display().to_string());
+        for v in variants {
+            let path = scenes.join(format!("{}.json", v.name));
+            std::fs::write(&path, &v.text).map_err(|e| Error::io(&path, "cannot write", e))?;
+            let scene = quoted(
+                &out.join("scenes")
+                    .join(format!("{}.json", v.name))
+                    .display()
+                    .to_string(),
+            );
+            let bake = quoted(&out.join("bakes").join(&v.name).display().to_string());
+            let exe = quoted(&exe);
+            jobs.push_str(&format!("{exe} bake {scene} --out {bake}"));
+            if v.characters {
+                jobs.push_str(&format!(" --shell-cache {cache}"));
+                shells.push_str(&format!("{exe} shell {scene} --out {cache}\n"));
+            }
+            jobs.push('\n');
         }
         let jobs_path = staging.join("jobs.txt");
         std::fs::write(&jobs_path, jobs).map_err(|e| Error::io(&jobs_path, "cannot write", e))?;
+        if !shells.is_empty() {
+            let path = staging.join("shells.txt");
+            std::fs::write(&path, shells).map_err(|e| Error::io(&path, "cannot write", e))?;
+        }
         let yaml_path = staging.join("job.yaml");
         std::fs::write(&yaml_path, openjd(&exe, &out, stem, variants))
             .map_err(|e| Error::io(&yaml_path, "cannot write", e))?;
@@ -279,30 +306,55 @@ fn write_plan(out: &Path, stem: &str, variants: &[(String, String)]) -> Result<(
 
 /// The plan as an Open Job Description job template (specification 2023-09): one step whose
 /// tasks range over the variants.
-fn openjd(exe: &str, out: &Path, stem: &str, variants: &[(String, String)]) -> String {
+fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
     let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
-    let names: Vec<String> = variants.iter().map(|(n, _)| json(n)).collect();
-    let scenes = out.join("scenes").display().to_string();
-    let bakes = out.join("bakes").display().to_string();
-    format!(
-        "specificationVersion: 'jobtemplate-2023-09'\n\
-         name: {name}\n\
-         steps:\n\
-         - name: bake\n\
-         \x20 parameterSpace:\n\
-         \x20   taskParameterDefinitions:\n\
-         \x20   - name: Variant\n\
-         \x20     type: STRING\n\
-         \x20     range: [{range}]\n\
-         \x20 script:\n\
-         \x20   actions:\n\
-         \x20     onRun:\n\
-         \x20       command: {exe}\n\
-         \x20       args: ['bake', {scene}, '--out', {bake}]\n",
-        name = json(&format!("drape plan of {stem}")),
-        range = names.join(", "),
-        exe = json(exe),
-        scene = json(&format!("{scenes}/{{{{Task.Param.Variant}}}}.json")),
-        bake = json(&format!("{bakes}/{{{{Task.Param.Variant}}}}")),
-    )
+    let names: Vec<String> = variants.iter().map(|v| json(&v.name)).collect();
+    let scene = json(&format!(
+        "{}/{{{{Task.Param.Variant}}}}.json",
+        out.join("scenes").display()
+    ));
+    let bake = json(&format!(
+        "{}/{{{{Task.Param.Variant}}}}",
+        out.join("bakes").display()
+    ));
+    let cache = json(&out.join("shells").display().to_string());
+    let characters = variants.iter().any(|v| v.characters);
+    // A step over every variant running `args`, after `after` when given.
+    let step = |name: &str, args: &str, after: Option<&str>| {
+        let mut s = format!(
+            "- name: {name}\n  parameterSpace:\n    taskParameterDefinitions:\n    - name: Variant\n      type: STRING\n      range: [{}]\n",
+            names.join(", ")
+        );
+        if let Some(a) = after {
+            s.push_str(&format!("  dependencies:\n  - dependsOn: {a}\n"));
+        }
+        s.push_str(&format!(
+            "  script:\n    actions:\n      onRun:\n        command: {}\n        args: [{args}]\n",
+            json(exe)
+        ));
+        s
+    };
+    let mut text = format!(
+        "specificationVersion: 'jobtemplate-2023-09'\nname: {}\nsteps:\n",
+        json(&format!("drape plan of {stem}"))
+    );
+    if characters {
+        text.push_str(&step(
+            "shells",
+            &format!("'shell', {scene}, '--out', {cache}"),
+            None,
+        ));
+        text.push_str(&step(
+            "bake",
+            &format!("'bake', {scene}, '--out', {bake}, '--shell-cache', {cache}"),
+            Some("shells"),
+        ));
+    } else {
+        text.push_str(&step(
+            "bake",
+            &format!("'bake', {scene}, '--out', {bake}"),
+            None,
+        ));
+    }
+    text
 }

@@ -83,6 +83,43 @@ pub fn check_args(a: &CharacterArgs) -> drape::Result<()> {
 
 /// Refuses an `--out` that is a folder or an existing file other than a shell cache: `drape
 /// shell` replaces only its own caches.
+/// `drape shell SCENE.json --out DIR`: every character's shell of the scene into the cache folder
+/// `DIR`, through the bake's own loading (so its bakes with `--shell-cache DIR` reuse them).
+fn scene_shells(scene_file: &Path, dir: &Path) -> anyhow::Result<i32> {
+    let scene = drape::scene::Scene::load(scene_file)?;
+    if dir.exists() && !dir.is_dir() {
+        return Err(drape::Error::InvalidArgument {
+            flag: "--out".into(),
+            reason: format!(
+                "{} is a file; with a scene, --out is the folder of its shell caches",
+                dir.display()
+            ),
+        }
+        .into());
+    }
+    std::fs::create_dir_all(dir).map_err(|e| drape::Error::io(dir, "cannot create", e))?;
+    let start = Instant::now();
+    let mut warnings = Vec::new();
+    let loaded = drape::bake::load_characters(&scene, dir, &mut warnings)?;
+    for w in warnings {
+        eprintln!("drape: warning: {w}");
+    }
+    for c in &loaded {
+        println!(
+            "character {}: shell of {} particles over {} frames, cache {}",
+            c.report.name, c.report.shell_particles, c.report.frames, c.report.shell_cache
+        );
+    }
+    println!(
+        "{} shell{} in {} ({:.1} s)",
+        loaded.len(),
+        if loaded.len() == 1 { "" } else { "s" },
+        dir.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(0)
+}
+
 fn check_out(out: &std::path::Path) -> drape::Result<()> {
     let reason = if out.is_dir() {
         "is a folder; give the cache file's path, e.g. walker.shell"
@@ -132,6 +169,9 @@ pub fn load(
 
 pub fn run(args: ShellArgs) -> anyhow::Result<i32> {
     let a = &args.character;
+    if a.character.extension().is_some_and(|e| e == "json") {
+        return scene_shells(&a.character, &args.out);
+    }
     check_args(a)?;
     check_out(&args.out)?;
     let options = options(a);
