@@ -17,8 +17,8 @@ use std::collections::HashMap;
 pub const REACH: f32 = 0.05;
 
 /// The point of triangle `abc` nearest `p`, as barycentric weights (Ericson, Real-Time Collision
-/// Detection, 5.1.5).
-pub fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+/// Detection, 5.1.5). Attachments to a skin bind with it too.
+pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));
     if d1 <= 0.0 && d2 <= 0.0 {
@@ -88,7 +88,7 @@ pub fn penetration(
         for &t in candidates {
             let [i, j, k] = triangles[t as usize];
             let [a, b, c] = [i, j, k].map(|v| vertices[v as usize]);
-            let w = closest_on_triangle(p, a, b, c);
+            let w = closest_barycentric(p, a, b, c);
             let q = a * w.x + b * w.y + c * w.z;
             let d2 = p.distance_squared(q);
             if d2 < best.0 {
@@ -170,7 +170,7 @@ mod tests {
             (Vec3::new(2.0, -0.5, 0.0), b),
             (Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.5, 0.5, 0.0)),
         ] {
-            let w = closest_on_triangle(p, a, b, c);
+            let w = closest_barycentric(p, a, b, c);
             let q = a * w.x + b * w.y + c * w.z;
             assert!(
                 q.distance(expected) < 1e-6,

@@ -107,44 +107,6 @@ fn triangle_frame(a: Vec3, b: Vec3, c: Vec3) -> [Vec3; 3] {
     [e, n.cross(e), n]
 }
 
-/// Closest point of triangle abc to p, as barycentric coordinates (Ericson, Real-Time Collision
-/// Detection §5.1.5).
-pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return Vec3::X;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return Vec3::Y;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return Vec3::new(1.0 - v, v, 0.0);
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return Vec3::Z;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return Vec3::new(1.0 - w, 0.0, w);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return Vec3::new(0.0, 1.0 - w, w);
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let (v, w) = (vb * denom, vc * denom);
-    Vec3::new(1.0 - v - w, v, w)
-}
-
 /// Every attachment of a simulation, with the motions and skins they follow.
 #[derive(Clone, Debug, Default)]
 pub struct Attachments {
@@ -234,7 +196,7 @@ impl Attachments {
                 let mut best = (f32::MAX, [0u32; 3], Vec3::X);
                 for t in &skin.triangles {
                     let [a, b, c] = t.map(|i| vertices[i as usize]);
-                    let bary = closest_barycentric(rest, a, b, c);
+                    let bary = crate::collide::mesh::closest_barycentric(rest, a, b, c);
                     let d = (a * bary.x + b * bary.y + c * bary.z).distance_squared(rest);
                     if d < best.0 {
                         best = (d, *t, bary);
