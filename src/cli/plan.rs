@@ -70,7 +70,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
         })
         .unwrap_or_else(|| "scene".into());
     let mut variants = Vec::new();
-    for combination in combinations(&wedges) {
+    for (index, combination) in combinations(&wedges).into_iter().enumerate() {
         let mut scene = absolute_paths(original.clone(), &base);
         let mut name = stem.clone();
         for (wedge, value) in wedges.iter().zip(&combination) {
@@ -85,6 +85,11 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
                 label(&wedge.field),
                 label(&value_text(value))
             ));
+        }
+        // A name too long for a file name (many or long wedges) becomes the variant's number;
+        // its scene file still holds every value.
+        if name.len() > drape::scene::MAX_NAME_BYTES {
+            name = format!("{}_{:04}", stem, index + 1);
         }
         scene["name"] = Value::String(name.clone());
         let text = serde_json::to_string_pretty(&scene).expect("JSON serialises");

@@ -9,7 +9,7 @@ mod collider;
 pub(crate) mod validate;
 
 pub use collider::{ColliderKind, ColliderShape, ColliderSpec};
-pub use validate::{bad_name, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_PARTICLES};
+pub use validate::{bad_name, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_NAME_BYTES, MAX_PARTICLES};
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
