@@ -72,6 +72,14 @@ impl Backend {
         }
     }
 
+    /// Bytes the last frame wrote to the GPU (None on the CPU).
+    pub fn uploaded_last_frame(&self) -> Option<u64> {
+        match self {
+            Backend::Cpu => None,
+            Backend::Gpu(g) => Some(g.uploaded_last_frame()),
+        }
+    }
+
     /// True on the GPU.
     pub fn is_gpu(&self) -> bool {
         matches!(self, Backend::Gpu(_))

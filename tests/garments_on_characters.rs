@@ -117,6 +117,14 @@ fn gpu_matches_cpu_on_the_stool(contact_passes: u32, close_until: u32) {
     for frame in 1..=scene.frames {
         cpu.step_frame();
         gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        // The stool never moves: its shell goes up with the first frame, then nothing does
+        // (no attachments, no moving collider) and the parity below still holds.
+        let uploaded = gpu.uploaded_last_frame();
+        if frame == 1 {
+            assert!(uploaded > 0, "the first frame uploads the stool's shell");
+        } else {
+            assert_eq!(uploaded, 0, "frame {frame} uploaded {uploaded} bytes");
+        }
         if frame <= close_until {
             landing = landing.max(common::largest_gap(&cpu, &on_gpu));
         }

@@ -31,6 +31,7 @@ pub fn run(
         times.lap(schedule::timed(stage), since);
     };
     let mut frame_ms = Vec::with_capacity(frames as usize);
+    let mut uploaded = 0u64;
     let mut residuals = Vec::new();
     let mut worst = vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
     // FNV-1a over every baked frame's positions (f32 bits, export order, frame by frame).
@@ -40,6 +41,9 @@ pub fn run(
         let frame = report.frame_start + baked - 1;
         let start = Instant::now();
         backend.step_frame(sim)?;
+        if let Some(bytes) = backend.uploaded_last_frame() {
+            uploaded += bytes;
+        }
         let tearing = Instant::now();
         if sim.tears() && sim.tear() > 0 {
             // The GPU takes the torn model (and the state it produced) afresh.
@@ -85,6 +89,9 @@ pub fn run(
         }
     }
     report.ms_per_frame = Timing::of(&frame_ms);
+    if backend.is_gpu() {
+        report.gpu_upload_bytes_per_frame = Some(uploaded / (frame_ms.len() as u64).max(1));
+    }
     report.frames_hash = format!("{hash:016x}");
     report.torn_springs = sim.torn_springs;
     report.stable = report.failure.is_none();

@@ -60,6 +60,7 @@ pub(super) fn empty_report(
         worst_penetrations: Vec::new(),
         penetrations_per_frame: Vec::new(),
         worst_mesh_penetrations: Vec::new(),
+        gpu_upload_bytes_per_frame: None,
         mesh_penetrations_per_frame: Vec::new(),
         torn_springs: 0,
         stable: true,

@@ -660,6 +660,11 @@ impl ShellCollider {
         (particles, grid)
     }
 
+    /// True for a shell that never moves (a character of one frame: a stool).
+    pub fn is_static(&self) -> bool {
+        self.frames.len() == 1
+    }
+
     /// The most shell particles of any frame (all frames' alike unless the character's topology
     /// changes and its shell is re-sampled per frame); the grid has buckets for this many.
     pub fn most_particles(&self) -> usize {

@@ -372,6 +372,11 @@ pub struct ContactGroup {
     pub attach_target: wgpu::Buffer,
     pub shell_particle: wgpu::Buffer,
     pub shell_grid: wgpu::Buffer,
+    /// Each shell's place in a substep's entries, and the entries of one substep (particles,
+    /// grid words).
+    pub shells: Vec<GpuShellInfo>,
+    pub shell_stride: u32,
+    pub grid_stride: u32,
     pub group: wgpu::BindGroup,
 }
 
@@ -508,6 +513,9 @@ impl ContactGroup {
             attach_target,
             shell_particle,
             shell_grid,
+            shells,
+            shell_stride,
+            grid_stride,
             group,
         }
     }

@@ -29,9 +29,12 @@ pub struct GpuSimulation {
     state: StateGroup,
     residual: ResidualGroup,
     contact: ContactGroup,
-    has_shells: bool,
     /// Timestamps between the stages of a frame, when the device has them.
     clock: Option<StageClock>,
+    /// Shells that never move are uploaded with the first frame only.
+    static_shells_uploaded: bool,
+    /// Bytes written to the GPU for the last frame (attachment targets, shells, collider poses).
+    uploaded_last_frame: u64,
     particles: u32,
     springs: u32,
     structural: u32,
@@ -163,8 +166,9 @@ impl GpuSimulation {
             .then(|| StageClock::new(&ctx, sim))
             .flatten();
         Ok(GpuSimulation {
-            has_shells: !sim.shells.is_empty(),
             clock,
+            static_shells_uploaded: false,
+            uploaded_last_frame: 0,
             particles: model.particle_count() as u32,
             springs: model.springs.len() as u32,
             structural: model.structural_springs as u32,
@@ -193,6 +197,12 @@ impl GpuSimulation {
         self.clock.is_some()
     }
 
+    /// Bytes written to the GPU for the last frame: what the CPU computed that the kernels read
+    /// (attachment targets, characters' shells, collider poses).
+    pub fn uploaded_last_frame(&self) -> u64 {
+        self.uploaded_last_frame
+    }
+
     /// The adapter's "name (type)".
     pub fn adapter(&self) -> String {
         self.ctx.describe()
@@ -208,7 +218,13 @@ impl GpuSimulation {
     pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
         // Where the attached particles go this frame, substep by substep (also advances the
         // simulation's clock).
-        let driven = sim.drive_frame();
+        let driven = sim.drive_frame(!self.static_shells_uploaded);
+        let queue = &self.ctx.queue;
+        let mut uploaded = 0u64;
+        let mut upload = |buffer: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
+            queue.write_buffer(buffer, offset, bytes);
+            uploaded += bytes.len() as u64;
+        };
         if self.contact.attached > 0 {
             let targets: Vec<Vec4> = driven
                 .attachments
@@ -216,29 +232,30 @@ impl GpuSimulation {
                 .flatten()
                 .map(|(_, t)| t.extend(0.0))
                 .collect();
-            self.ctx.queue.write_buffer(
+            upload(
                 &self.contact.attach_target,
                 0,
                 bytemuck::cast_slice(&targets),
             );
         }
-        if self.has_shells {
-            let mut particles: Vec<[Vec4; 3]> = Vec::new();
-            let mut grid: Vec<u32> = Vec::new();
-            for substep in &driven.shells {
-                for (p, g) in substep {
-                    particles.extend_from_slice(p);
-                    grid.extend_from_slice(g);
-                }
+        // Each shell's entries of each substep where the kernels read them; a shell that never
+        // moves only with the first frame (its entries stay for every later one).
+        for (substep, shells) in driven.shells.iter().enumerate() {
+            for (info, snapshot) in self.contact.shells.iter().zip(shells) {
+                let Some((particles, grid)) = snapshot else {
+                    continue;
+                };
+                let at = substep as u64 * self.contact.shell_stride as u64 + info.first as u64;
+                upload(
+                    &self.contact.shell_particle,
+                    at * 48,
+                    bytemuck::cast_slice(particles),
+                );
+                let at = substep as u64 * self.contact.grid_stride as u64 + info.grid as u64;
+                upload(&self.contact.shell_grid, at * 4, bytemuck::cast_slice(grid));
             }
-            let queue = &self.ctx.queue;
-            queue.write_buffer(
-                &self.contact.shell_particle,
-                0,
-                bytemuck::cast_slice(&particles),
-            );
-            queue.write_buffer(&self.contact.shell_grid, 0, bytemuck::cast_slice(&grid));
         }
+        self.static_shells_uploaded = true;
         if self.state.moving_colliders {
             let poses: Vec<GpuCollider> = driven
                 .colliders
@@ -246,10 +263,9 @@ impl GpuSimulation {
                 .flatten()
                 .map(gpu_collider)
                 .collect();
-            self.ctx
-                .queue
-                .write_buffer(&self.state.colliders, 0, bytemuck::cast_slice(&poses));
+            upload(&self.state.colliders, 0, bytemuck::cast_slice(&poses));
         }
+        self.uploaded_last_frame = uploaded;
         let encoder = self.record_frame(sim);
         let n = self.particles as u64 * 16;
         let mut encoder = encoder;

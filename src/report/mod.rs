@@ -37,6 +37,10 @@ pub struct Report {
     /// CPU backend (the GPU runs them in one command buffer, untimed), and what runs around them
     /// on both.
     pub stages_ms: Vec<StageTiming>,
+    /// GPU backend: bytes written to the GPU per frame, on average (what the CPU computes for
+    /// the kernels: attachment targets, characters' shells, collider poses); absent on the CPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_upload_bytes_per_frame: Option<u64>,
     /// Metrics after the last baked frame.
     pub last_frame: Option<FrameMetrics>,
     /// The frame with the largest structural strain.

@@ -296,8 +296,9 @@ impl Simulation {
     /// Where the attached particles go (storage index, target) and where the colliders are, at
     /// the end of each substep of the next frame, substep by substep; advances the clock by a
     /// frame as if it ran, leaving the colliders in their last pose: for a backend that runs
-    /// the frame elsewhere (the GPU) and copies the state back.
-    pub fn drive_frame(&mut self) -> DrivenFrame {
+    /// the frame elsewhere (the GPU) and copies the state back. `static_shells`: include the
+    /// shells that never move too (the GPU needs them once).
+    pub fn drive_frame(&mut self, static_shells: bool) -> DrivenFrame {
         let mut frame = DrivenFrame::default();
         let mut last: Vec<Vec3> = self
             .attachments
@@ -308,9 +309,12 @@ impl Simulation {
         for _ in 0..self.substeps {
             let start = std::time::Instant::now();
             self.advance_shells();
-            frame
-                .shells
-                .push(self.shells.iter().map(|s| s.gpu_snapshot()).collect());
+            frame.shells.push(
+                self.shells
+                    .iter()
+                    .map(|s| (static_shells || !s.is_static()).then(|| s.gpu_snapshot()))
+                    .collect(),
+            );
             self.stage_times.lap(schedule::timed("shells"), start);
             let t = (self.elapsed_substeps + 1) as f32 / (self.substeps as f32 * self.fps);
             frame.attachments.push(
@@ -547,8 +551,9 @@ pub struct DrivenFrame {
     pub attachments: Vec<Vec<(u32, Vec3)>>,
     /// Per substep: every collider in its pose at the end of that substep.
     pub colliders: Vec<Vec<Collider>>,
-    /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`].
-    pub shells: Vec<Vec<crate::collide::shell::ShellSnapshot>>,
+    /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`] (None for a shell
+    /// that never moves, unless asked for: the GPU keeps it from its first upload).
+    pub shells: Vec<Vec<Option<crate::collide::shell::ShellSnapshot>>>,
 }
 
 /// The per-particle stages of a substep, with what they read and write.
