@@ -54,7 +54,7 @@ const PACKING: f64 = 0.55;
 /// Hashes a grid cell with one multiply per coordinate (the sampler looks up 27 cells per
 /// candidate, tens of millions of times for a fine shell: SipHash's cost would dominate).
 #[derive(Default)]
-struct CellHasher(u64);
+pub(crate) struct CellHasher(u64);
 
 impl std::hash::Hasher for CellHasher {
     fn finish(&self) -> u64 {
@@ -75,7 +75,9 @@ impl std::hash::Hasher for CellHasher {
     }
 }
 
-type CellMap = HashMap<glam::IVec3, u32, std::hash::BuildHasherDefault<CellHasher>>;
+/// A map keyed by grid cells, hashed with [`CellHasher`].
+pub(crate) type CellMap<V = u32> =
+    HashMap<glam::IVec3, V, std::hash::BuildHasherDefault<CellHasher>>;
 
 /// Candidates drawn, sorted and tested together (24 MB of candidates at most).
 const BATCH: usize = 1 << 20;

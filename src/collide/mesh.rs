@@ -11,7 +11,6 @@
 use super::Penetration;
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// How far from the surface a point is looked at [m].
 pub const REACH: f32 = 0.05;
@@ -65,7 +64,7 @@ pub fn penetration(
     let cell_of = |p: Vec3| (p / REACH).floor().as_ivec3();
     // Each triangle in every cell its box, grown by REACH, touches: a point's own cell then
     // holds every triangle within REACH of it.
-    let mut grid: HashMap<IVec3, Vec<u32>> = HashMap::new();
+    let mut grid: crate::character::shell::CellMap<Vec<u32>> = Default::default();
     for (t, tri) in triangles.iter().enumerate() {
         let [a, b, c] = tri.map(|i| vertices[i as usize]);
         let (lo, hi) = (
