@@ -119,7 +119,8 @@ fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 impl Kernels {
     /// Compiles every kernel for `device`.
     /// Compiles every kernel, `finish` and `contact_pass` for a scene with characters' shells
-    /// (`shells`) and analytic colliders (`colliders`) or without.
+    /// (`shells`) and analytic colliders (`colliders`) or without. (Long: the three bind group
+    /// layouts, then one pipeline per entry point, listed.)
     pub fn new(device: &wgpu::Device, shells: bool, colliders: bool) -> Kernels {
         let mut entries = vec![wgpu::BindGroupLayoutEntry {
             binding: 0,

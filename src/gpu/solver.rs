@@ -219,53 +219,7 @@ impl GpuSimulation {
         // Where the attached particles go this frame, substep by substep (also advances the
         // simulation's clock).
         let driven = sim.drive_frame(!self.static_shells_uploaded);
-        let queue = &self.ctx.queue;
-        let mut uploaded = 0u64;
-        let mut upload = |buffer: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
-            queue.write_buffer(buffer, offset, bytes);
-            uploaded += bytes.len() as u64;
-        };
-        if self.contact.attached > 0 {
-            let targets: Vec<Vec4> = driven
-                .attachments
-                .iter()
-                .flatten()
-                .map(|(_, t)| t.extend(0.0))
-                .collect();
-            upload(
-                &self.contact.attach_target,
-                0,
-                bytemuck::cast_slice(&targets),
-            );
-        }
-        // Each shell's entries of each substep where the kernels read them; a shell that never
-        // moves only with the first frame (its entries stay for every later one).
-        for (substep, shells) in driven.shells.iter().enumerate() {
-            for (info, snapshot) in self.contact.shells.iter().zip(shells) {
-                let Some((particles, grid)) = snapshot else {
-                    continue;
-                };
-                let at = substep as u64 * self.contact.shell_stride as u64 + info.first as u64;
-                upload(
-                    &self.contact.shell_particle,
-                    at * 48,
-                    bytemuck::cast_slice(particles),
-                );
-                let at = substep as u64 * self.contact.grid_stride as u64 + info.grid as u64;
-                upload(&self.contact.shell_grid, at * 4, bytemuck::cast_slice(grid));
-            }
-        }
-        self.static_shells_uploaded = true;
-        if self.state.moving_colliders {
-            let poses: Vec<GpuCollider> = driven
-                .colliders
-                .iter()
-                .flatten()
-                .map(gpu_collider)
-                .collect();
-            upload(&self.state.colliders, 0, bytemuck::cast_slice(&poses));
-        }
-        self.uploaded_last_frame = uploaded;
+        self.uploaded_last_frame = self.upload(&driven);
         let encoder = self.record_frame(sim);
         let n = self.particles as u64 * 16;
         let mut encoder = encoder;
@@ -318,6 +272,58 @@ impl GpuSimulation {
             c.read(&self.ctx, &mut sim.stage_times)?;
         }
         Ok(())
+    }
+
+    /// Writes what the CPU computed for the frame `driven` describes (attachment targets, the
+    /// shells of every substep where the kernels read them, collider poses); returns the bytes.
+    fn upload(&mut self, driven: &crate::sim::DrivenFrame) -> u64 {
+        let queue = &self.ctx.queue;
+        let mut uploaded = 0u64;
+        let mut upload = |buffer: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
+            queue.write_buffer(buffer, offset, bytes);
+            uploaded += bytes.len() as u64;
+        };
+        if self.contact.attached > 0 {
+            let targets: Vec<Vec4> = driven
+                .attachments
+                .iter()
+                .flatten()
+                .map(|(_, t)| t.extend(0.0))
+                .collect();
+            upload(
+                &self.contact.attach_target,
+                0,
+                bytemuck::cast_slice(&targets),
+            );
+        }
+        // Each shell's entries of each substep where the kernels read them; a shell that never
+        // moves only with the first frame (its entries stay for every later one).
+        for (substep, shells) in driven.shells.iter().enumerate() {
+            for (info, snapshot) in self.contact.shells.iter().zip(shells) {
+                let Some((particles, grid)) = snapshot else {
+                    continue;
+                };
+                let at = substep as u64 * self.contact.shell_stride as u64 + info.first as u64;
+                upload(
+                    &self.contact.shell_particle,
+                    at * 48,
+                    bytemuck::cast_slice(particles),
+                );
+                let at = substep as u64 * self.contact.grid_stride as u64 + info.grid as u64;
+                upload(&self.contact.shell_grid, at * 4, bytemuck::cast_slice(grid));
+            }
+        }
+        self.static_shells_uploaded = true;
+        if self.state.moving_colliders {
+            let poses: Vec<GpuCollider> = driven
+                .colliders
+                .iter()
+                .flatten()
+                .map(gpu_collider)
+                .collect();
+            upload(&self.state.colliders, 0, bytemuck::cast_slice(&poses));
+        }
+        uploaded
     }
 
     /// Records every substep of a frame.
