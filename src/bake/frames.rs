@@ -58,8 +58,10 @@ pub fn run(
         lap(&mut around, "tearing", tearing);
 
         let measuring = Instant::now();
-        let unstable = measure(sim, frame, &initial_energy, &mut worst, report);
-        measure_meshes(sim, meshes, baked as usize - 1, frame, report);
+        // The free particles, gathered once for every penetration count.
+        let free = sim.free_positions();
+        let unstable = measure(sim, &free, frame, &initial_energy, &mut worst, report);
+        measure_meshes(&free, meshes, baked as usize - 1, frame, report);
         if let Some(r) = &sim.residuals {
             residuals.push(r.clone());
         }
@@ -102,10 +104,10 @@ pub fn run(
     Ok(around)
 }
 
-/// Measures how many free garment particles lie inside each character's own mesh at baked frame
-/// `index` (shot frame `frame`), into `report`.
+/// Measures how many of the `free` garment particles lie inside each character's own mesh at
+/// baked frame `index` (shot frame `frame`), into `report`.
 fn measure_meshes(
-    sim: &Simulation,
+    free: &[glam::Vec4],
     meshes: &BakeMeshes,
     index: usize,
     frame: u32,
@@ -115,7 +117,7 @@ fn measure_meshes(
     if characters.peek().is_none() {
         return;
     }
-    let free: Vec<glam::Vec3> = sim.free_positions().iter().map(|p| p.truncate()).collect();
+    let free: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
     let mut this = FramePenetrations {
         frame,
         inside: Vec::new(),
@@ -139,19 +141,19 @@ fn measure_meshes(
     report.mesh_penetrations_per_frame.push(this);
 }
 
-/// Measures frame `frame`: strain, penetrations (into `report` and the worst so far in `worst`)
-/// and stability; returns why the simulation is unstable, if it is.
+/// Measures frame `frame`: strain, penetrations of the `free` particles (into `report` and the
+/// worst so far in `worst`) and stability; returns why the simulation is unstable, if it is.
 fn measure(
     sim: &Simulation,
+    free: &[glam::Vec4],
     frame: u32,
     initial_energy: &metrics::Energy,
     worst: &mut [collide::Penetration],
     report: &mut Report,
 ) -> Option<String> {
     let error = sim.constraint_error();
-    let free = sim.free_positions();
-    let mut penetrations = collide::penetrations(&sim.colliders, &free);
-    penetrations.extend(sim.shells.iter().map(|s| s.penetration(&free)));
+    let mut penetrations = collide::penetrations(&sim.colliders, free);
+    penetrations.extend(sim.shells.iter().map(|s| s.penetration(free)));
     report.penetrations_per_frame.push(FramePenetrations {
         frame,
         inside: penetrations.iter().map(|p| p.inside).collect(),

@@ -8,7 +8,7 @@ use crate::export::gltf::{Container, GltfFile};
 use crate::export::obj::ObjFrames;
 use crate::export::pointcache::{write_usda, Pc2Files};
 use crate::export::sequence::BakeMeshes;
-use crate::export::sink::{Frame, FrameSink, Output, Sinks};
+use crate::export::sink::{Frame, Output, Sinks};
 use crate::export::spool::{Recorded, Spool};
 use crate::gpu::GpuContext;
 use crate::render::{render_sequence, RenderOptions};
@@ -78,7 +78,7 @@ impl Exports {
     /// From frame index `from` on, mesh `mesh` has these faces.
     pub fn faces(&mut self, mesh: usize, from: usize, triangles: &[[u32; 3]]) -> Result<()> {
         if let Some(spool) = &mut self.spool {
-            spool.faces(mesh, from, triangles)?;
+            spool.faces(mesh, from, triangles);
         }
         self.output.faces(mesh, from, triangles)
     }

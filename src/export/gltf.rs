@@ -213,16 +213,6 @@ impl<W: Write> Morphs<W> {
         }
     }
 
-    /// Bytes of the binary buffer so far.
-    pub fn len(&self) -> u64 {
-        self.b.len
-    }
-
-    /// True before the first frame.
-    pub fn is_empty(&self) -> bool {
-        self.frames == 0
-    }
-
     /// Appends the next frame (positions of every mesh; a static one's only in the first).
     pub fn frame(&mut self, positions: &[Vec<Vec3>]) -> io::Result<()> {
         let first = self.frames == 0;

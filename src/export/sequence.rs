@@ -45,7 +45,8 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<ColliderMesh> {
                 (p.iter().map(|q| center + rotation * *q).collect(), t)
             };
             // Built at the origin, then turned and placed like the collider.
-            let (positions, triangles) = match crate::collide::Collider::from_spec(c).shape {
+            let shape = crate::collide::Collider::from_spec(c).shape;
+            let (positions, triangles) = match shape {
                 Shape::Plane { .. } => return None,
                 Shape::Sphere { center, radius } => rounded(center, center, radius),
                 Shape::Capsule { start, end, radius } => rounded(start, end, radius),
@@ -67,10 +68,7 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<ColliderMesh> {
                     ..
                 } => frustum(center, radius, top_radius, height),
             };
-            let track = (!c.keyframes.is_empty()).then(|| {
-                let pivot = crate::collide::Collider::from_spec(c).shape.centre();
-                Track::new(&c.keyframes, pivot)
-            });
+            let track = (!c.keyframes.is_empty()).then(|| Track::new(&c.keyframes, shape.centre()));
             let mesh = AnimatedMesh {
                 name: format!("collider{i}"),
                 triangles,

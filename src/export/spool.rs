@@ -7,7 +7,7 @@
 //! Layout: frame 0 holds every mesh in turn; each later frame holds the animated meshes only
 //! (a static mesh's vertices are read from frame 0).
 
-use super::sink::{Frame, FrameSink, MeshInfo, Written};
+use super::sink::{Frame, MeshInfo};
 use crate::error::{Error, Result};
 use glam::Vec3;
 use std::fs::File;
@@ -90,8 +90,9 @@ impl Spool {
     }
 }
 
-impl FrameSink for Spool {
-    fn frame(&mut self, frame: &Frame) -> Result<()> {
+impl Spool {
+    /// Appends the next frame.
+    pub fn frame(&mut self, frame: &Frame) -> Result<()> {
         for ((m, positions), drawn) in self.meshes.iter().zip(&frame.positions).zip(&self.drawn) {
             if frame.index > 0 && !m.animated {
                 continue;
@@ -109,15 +110,10 @@ impl FrameSink for Spool {
         Ok(())
     }
 
-    fn faces(&mut self, mesh: usize, from: usize, triangles: &[[u32; 3]]) -> Result<()> {
+    /// From frame index `from` on, mesh `mesh` has these faces.
+    pub fn faces(&mut self, mesh: usize, from: usize, triangles: &[[u32; 3]]) {
         self.topology[mesh].push((from, triangles.to_vec()));
         self.drawn[mesh] = drawn(self.meshes[mesh].vertices, triangles);
-        Ok(())
-    }
-
-    fn finish(self: Box<Self>, _frames: usize) -> Result<Vec<Written>> {
-        let _ = std::fs::remove_file(&self.path);
-        Ok(Vec::new())
     }
 }
 

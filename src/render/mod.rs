@@ -466,13 +466,18 @@ pub trait FrameSource {
 /// Meshes with every frame in memory (a glTF read back).
 pub struct InMemory<'a>(pub &'a [AnimatedMesh]);
 
-/// Mesh `m` at one frame: `positions` and `triangles`.
-fn at_frame(m: &AnimatedMesh, positions: Vec<Vec3>, triangles: &[[u32; 3]]) -> AnimatedMesh {
+/// A mesh of one frame to draw: `positions` with `triangles`.
+fn at_frame(
+    name: &str,
+    colour: [f32; 4],
+    positions: Vec<Vec3>,
+    triangles: &[[u32; 3]],
+) -> AnimatedMesh {
     AnimatedMesh {
-        name: m.name.clone(),
+        name: name.to_string(),
         triangles: triangles.to_vec(),
         uvs: None,
-        colour: m.colour,
+        colour,
         frames: vec![positions],
         topology: Vec::new(),
     }
@@ -493,7 +498,7 @@ impl FrameSource for InMemory<'_> {
             .iter()
             .map(|m| {
                 let frame = m.frames[k.min(m.frames.len() - 1)].clone();
-                at_frame(m, frame, m.triangles_at(k))
+                at_frame(&m.name, m.colour, frame, m.triangles_at(k))
             })
             .collect())
     }
@@ -513,14 +518,12 @@ impl FrameSource for Recorded {
             .map(|m| {
                 let positions = self.positions(m, k)?;
                 let info = &self.meshes[m];
-                Ok(AnimatedMesh {
-                    name: info.name.clone(),
-                    triangles: self.triangles_at(m, k).to_vec(),
-                    uvs: None,
-                    colour: info.colour,
-                    frames: vec![positions],
-                    topology: Vec::new(),
-                })
+                Ok(at_frame(
+                    &info.name,
+                    info.colour,
+                    positions,
+                    self.triangles_at(m, k),
+                ))
             })
             .collect()
     }
