@@ -93,6 +93,8 @@ fn particles_tied_to_the_skin_ride_it() {
         threads: Some(2),
         progress: false,
         shell_cache: Some(dir.path().join("cache")),
+        resume: Default::default(),
+        until: None,
     };
     let result = bake(&scene, &options).expect("bake");
     assert!(result.report.stable, "{:?}", result.report.failure);

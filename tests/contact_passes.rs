@@ -83,6 +83,8 @@ fn passes_survive_a_shell_that_shrinks_between_frames() {
         threads: Some(2),
         progress: false,
         shell_cache: Some(dir.path().join("cache")),
+        resume: Default::default(),
+        until: None,
     };
     let result = drape::bake::bake(&scene, &options).expect("bake");
     assert!(result.report.stable, "{:?}", result.report.failure);

@@ -22,6 +22,8 @@ fn obj_frames_read_back_with_the_simulated_positions() {
             threads: Some(2),
             progress: false,
             shell_cache: None,
+            resume: Default::default(),
+            until: None,
         },
     )
     .expect("bake");

@@ -281,6 +281,8 @@ fn exercise(text: &str, base: &Path, bake_it: bool, tally: &mut Tally) -> Result
             threads: Some(1),
             progress: false,
             shell_cache: Some(dir.path().join("cache")),
+            resume: Default::default(),
+            until: None,
         };
         match drape::bake::bake(&small, &options) {
             Ok(b) => {

@@ -30,6 +30,8 @@ fn run(text: &str, out: &Path) -> drape::bake::Bake {
         threads: Some(2),
         progress: false,
         shell_cache: Some(out.parent().unwrap().join("cache")),
+        resume: Default::default(),
+        until: None,
     };
     bake(&scene, &options).expect("bake")
 }

@@ -28,6 +28,8 @@ fn bake_without_files(
         threads: Some(2),
         progress: false,
         shell_cache: Some(dir.path().join("cache")),
+        resume: Default::default(),
+        until: None,
     };
     let result = bake(&scene, &options).expect("bake");
     (scene, result)

@@ -1,6 +1,7 @@
-//! The frame loop: step, tear, measure and write each frame as it is made, until the last or
-//! until the simulation becomes unstable.
+//! The frame loop: step, tear, measure and write each frame as it is made (with a checkpoint
+//! now and then), until the last, until the simulation becomes unstable or until a signal.
 
+use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics};
 use crate::backend::Backend;
@@ -12,37 +13,46 @@ use crate::sim::schedule::{self, StageTimes};
 use crate::sim::{metrics, Simulation};
 use std::time::Instant;
 
-/// Bakes `report.frames_requested` frames of `sim` on `backend`, handing each to `exports` (as
-/// `meshes` shows it); fills `report`'s per-frame fields and stops at the first unstable frame
-/// (recorded in `report.failure`). Returns the time of the stages around the simulation's own
-/// (tearing, metrics, export).
+/// Bakes `sim` on `backend` from the frame after `progress.baked` to
+/// `report.frames_requested`, handing each frame to `exports` (as `meshes` shows it) and to
+/// the `checkpoints` (with a checkpoint when one is due, and at the end); fills `report`'s
+/// per-frame fields and stops at the first unstable frame (recorded in `report.failure`) or
+/// after the frame a signal arrived in. Returns the time of the stages around the simulation's
+/// own (tearing, metrics, export, checkpoints).
 pub fn run(
     sim: &mut Simulation,
     backend: &mut Backend,
-    meshes: &mut BakeMeshes,
-    exports: &mut Exports,
+    out: Out,
+    mut progress: Progress,
     report: &mut Report,
-    progress: &indicatif::ProgressBar,
+    bar: &indicatif::ProgressBar,
 ) -> Result<StageTimes> {
+    let Out {
+        meshes,
+        exports,
+        mut checkpoints,
+    } = out;
     let frames = report.frames_requested;
-    let initial_energy = sim.energy();
+    if progress.baked == 0 {
+        progress.initial_energy = sim.energy();
+        progress.hash = crate::character::cache::FNV_OFFSET;
+        progress.worst =
+            vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
+    }
+    progress.measured.clone().apply(report);
+    report.frames_baked = progress.baked;
+    bar.inc(progress.baked as u64);
     let mut around = StageTimes::default();
     let lap = |times: &mut StageTimes, stage: &str, since: Instant| {
         times.lap(schedule::timed(stage), since);
     };
-    let mut frame_ms = Vec::with_capacity(frames as usize);
-    let mut uploaded = 0u64;
-    let mut residuals = Vec::new();
-    let mut worst = vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
-    // FNV-1a over every baked frame's positions (f32 bits, export order, frame by frame).
-    let mut hash = crate::character::cache::FNV_OFFSET;
-    for baked in 1..=frames {
+    for baked in progress.baked + 1..=frames {
         // The shot's number of this frame (`frame_start`): what files and the report show.
         let frame = report.frame_start + baked - 1;
         let start = Instant::now();
         backend.step_frame(sim)?;
         if let Some(bytes) = backend.uploaded_last_frame() {
-            uploaded += bytes;
+            progress.uploaded += bytes;
         }
         let tearing = Instant::now();
         if sim.tears() && sim.tear() > 0 {
@@ -52,18 +62,21 @@ pub fn run(
             for g in meshes.tear(&sim.model().garments) {
                 let faces = &sim.model().garments[g].triangles;
                 exports.faces(g, baked as usize - 1, faces)?;
+                if let Some(c) = checkpoints.as_deref_mut() {
+                    c.faces(g, baked - 1, faces)?;
+                }
             }
         }
-        frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        progress.frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
         lap(&mut around, "tearing", tearing);
 
         let measuring = Instant::now();
         // The free particles, gathered once for every penetration count.
         let free = sim.free_positions();
-        let unstable = measure(sim, &free, frame, &initial_energy, &mut worst, report);
+        let unstable = measure(sim, &free, frame, &mut progress, report);
         measure_meshes(&free, meshes, baked as usize - 1, frame, report);
         if let Some(r) = &sim.residuals {
-            residuals.push(r.clone());
+            progress.residuals.push(r.clone());
         }
         lap(&mut around, "metrics", measuring);
         if let Some(reason) = unstable {
@@ -72,7 +85,7 @@ pub fn run(
         }
         let exporting = Instant::now();
         let positions = sim.export_positions();
-        hash = positions.iter().fold(hash, |h, p| {
+        progress.hash = positions.iter().fold(progress.hash, |h, p| {
             crate::character::cache::fnv(h, bytemuck::bytes_of(&p.to_array()))
         });
         if !exports.is_empty() {
@@ -80,7 +93,20 @@ pub fn run(
         }
         lap(&mut around, "export", exporting);
         report.frames_baked = baked;
-        progress.inc(1);
+        progress.baked = baked;
+        bar.inc(1);
+        if let Some(c) = checkpoints.as_deref_mut() {
+            let writing = Instant::now();
+            c.frame(baked - 1, &positions)?;
+            if c.due(baked) {
+                progress.measured = Measured::of(report);
+                c.write(frame, &sim.snapshot(), &progress, &sim.shells)?;
+            }
+            lap(&mut around, "checkpoint", writing);
+        }
+        if report.until.is_some_and(|u| frame >= u) {
+            break;
+        }
         let signal = super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed);
         if signal != 0 && baked < frames {
             report.interrupted = Some(crate::report::Interruption {
@@ -90,18 +116,58 @@ pub fn run(
             break;
         }
     }
-    report.ms_per_frame = Timing::of(&frame_ms);
-    if backend.is_gpu() {
-        report.gpu_upload_bytes_per_frame = Some(uploaded / (frame_ms.len() as u64).max(1));
+    // Always a checkpoint at the end (not of a state that went unstable).
+    if let Some(c) = checkpoints {
+        if report.failure.is_none() && progress.baked > 0 {
+            let writing = Instant::now();
+            progress.measured = Measured::of(report);
+            let frame = report.frame_start + progress.baked - 1;
+            c.write(frame, &sim.snapshot(), &progress, &sim.shells)?;
+            lap(&mut around, "checkpoint", writing);
+        }
     }
-    report.frames_hash = format!("{hash:016x}");
+    report.ms_per_frame = Timing::of(&progress.frame_ms);
+    if backend.is_gpu() {
+        report.gpu_upload_bytes_per_frame =
+            Some(progress.uploaded / (progress.frame_ms.len() as u64).max(1));
+    }
+    report.frames_hash = format!("{:016x}", progress.hash);
     report.torn_springs = sim.torn_springs;
     report.stable = report.failure.is_none();
-    report.worst_penetrations = collider_penetrations(&worst);
+    report.worst_penetrations = collider_penetrations(&progress.worst);
     if sim.residuals.is_some() {
-        report.residuals = Some(residuals);
+        report.residuals = Some(progress.residuals);
     }
     Ok(around)
+}
+
+/// Where each frame goes: the meshes that show it, the exports and the checkpoints.
+pub struct Out<'a> {
+    pub meshes: &'a mut BakeMeshes,
+    pub exports: &'a mut Exports,
+    pub checkpoints: Option<&'a mut checkpoint::Writer>,
+}
+
+impl Measured {
+    /// The report's per-frame fields so far.
+    fn of(report: &Report) -> Measured {
+        Measured {
+            penetrations_per_frame: report.penetrations_per_frame.clone(),
+            worst_mesh_penetrations: report.worst_mesh_penetrations.clone(),
+            mesh_penetrations_per_frame: report.mesh_penetrations_per_frame.clone(),
+            worst_frame: report.worst_frame.clone(),
+            last_frame: report.last_frame.clone(),
+        }
+    }
+
+    /// Puts these fields into `report`.
+    fn apply(self, report: &mut Report) {
+        report.penetrations_per_frame = self.penetrations_per_frame;
+        report.worst_mesh_penetrations = self.worst_mesh_penetrations;
+        report.mesh_penetrations_per_frame = self.mesh_penetrations_per_frame;
+        report.worst_frame = self.worst_frame;
+        report.last_frame = self.last_frame;
+    }
 }
 
 /// Measures how many of the `free` garment particles lie inside each character's own mesh at
@@ -147,8 +213,7 @@ fn measure(
     sim: &Simulation,
     free: &[glam::Vec4],
     frame: u32,
-    initial_energy: &metrics::Energy,
-    worst: &mut [collide::Penetration],
+    progress: &mut Progress,
     report: &mut Report,
 ) -> Option<String> {
     let error = sim.constraint_error();
@@ -159,7 +224,7 @@ fn measure(
         inside: penetrations.iter().map(|p| p.inside).collect(),
         deepest_m: penetrations.iter().map(|p| p.deepest).collect(),
     });
-    for (w, p) in worst.iter_mut().zip(&penetrations) {
+    for (w, p) in progress.worst.iter_mut().zip(&penetrations) {
         w.inside = w.inside.max(p.inside);
         w.deepest = w.deepest.max(p.deepest);
     }
@@ -176,7 +241,7 @@ fn measure(
         &sim.state,
         &error,
         &sim.energy(),
-        initial_energy,
+        &progress.initial_energy,
         sim.driven_energy() + sim.rounding_energy(),
         sim.integrating(),
     )

@@ -9,13 +9,16 @@
 //! what happened are still moved into place, so the user can see where it went wrong.
 
 pub mod characters;
+pub mod checkpoint;
 mod frames;
 mod output;
 pub mod prepare;
 mod report;
+pub mod resume;
 
 pub use characters::{load_characters, shell_cache_dir, LoadedCharacter};
 pub use prepare::{simulation, Prepared};
+pub use resume::Resume;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
@@ -46,6 +49,10 @@ pub struct BakeOptions {
     pub progress: bool,
     /// Folder of shell caches (`None`: [`shell_cache_dir`]).
     pub shell_cache: Option<PathBuf>,
+    /// Start from a checkpoint of an earlier bake into `out` ([`resume`]).
+    pub resume: Resume,
+    /// Stop after this shot frame, with a checkpoint (a farm chunk that the next resumes).
+    pub until: Option<u32>,
 }
 
 /// What a finished bake returns.
@@ -86,9 +93,24 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         .filter(|&n| n > cores)
         .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
-    let staging = Staging::new(&options.out)?;
+    let staging = if options.resume == Resume::No {
+        Staging::new(&options.out)?
+    } else {
+        Staging::resuming(&options.out)?
+    };
+    // Where checkpoints to resume from may be: dead runs' staging folders and the output.
+    let mut folders = staging.resumable.clone();
+    folders.push(staging.destination().to_path_buf());
     let written = pool
-        .install(|| run(scene, options, staging.path(), pool.current_num_threads()))
+        .install(|| {
+            run(
+                scene,
+                options,
+                staging.path(),
+                &folders,
+                pool.current_num_threads(),
+            )
+        })
         .and_then(|(mut report, positions)| {
             report.warnings.extend(clamped);
             report.warnings.extend(staging.notes.iter().cloned());
@@ -148,10 +170,13 @@ pub fn output_bytes(scene: &Scene, vertices: u64) -> u64 {
         .saturating_add(weights)
 }
 
+// Long: the bake's steps in order (characters, simulation, the checkpoint resumed from,
+// backend, exports, the frames, closing), each a call.
 fn run(
     scene: &Scene,
     options: &BakeOptions,
     dir: &Path,
+    resume_from: &[PathBuf],
     threads: usize,
 ) -> Result<(Report, Vec<Vec3>)> {
     let mut warnings = Vec::new();
@@ -162,7 +187,8 @@ fn run(
         characters,
         character_meshes,
     } = simulation(scene, characters, &options.scene_file)?;
-    let mut backend = Backend::for_scene(scene.backend, &sim, &mut warnings)?;
+    // The rest pose, the meshes and the report as the scene builds them, before a checkpoint
+    // is put back.
     let rest = sim.export_positions();
     let mut meshes = BakeMeshes::new(
         &sim.model().garments,
@@ -171,12 +197,55 @@ fn run(
         scene.frames as usize,
         scene.fps,
     );
+    let mut report = report::empty_report(scene, options, &sim, threads);
+    report.until = options.until;
+    let source = resumed_source(scene, options, resume_from, &sim.shells, &mut warnings)?;
+    if let Some(s) = &source {
+        sim.restore(&s.loaded.snapshot)
+            .map_err(|reason| Error::InvalidField {
+                file: s.checkpoint.display().to_string(),
+                field: "checkpoint".into(),
+                reason: format!("does not fit the scene: {reason}"),
+            })?;
+    }
+    let mut backend = Backend::for_scene(scene.backend, &sim, &mut warnings)?;
     let vertices = meshes.info.iter().map(|m| m.vertices as u64).sum();
     check_disk(scene, vertices, &options.scene_file, &options.out)?;
     // While the GPU simulates the CPU is free to write; on the CPU a writer thread would only
     // take turns with the solver.
     let mut exports = output::Exports::open(scene, dir, &meshes, &rest, backend.is_gpu())?;
-    let mut report = report::empty_report(scene, options, &sim, threads);
+    let mut writer = match scene.checkpoint_every {
+        Some(0) => None,
+        _ => Some(checkpoint::Writer::create(
+            dir.join(checkpoint::FOLDER),
+            scene,
+            if backend.is_gpu() { "gpu" } else { "cpu" },
+            meshes.garment_particles(),
+        )?),
+    };
+    let mut progress = checkpoint::Progress::default();
+    if let Some(s) = source {
+        let into = dir.join(checkpoint::FOLDER);
+        resume::replay(
+            &s,
+            &mut meshes,
+            &mut exports,
+            writer.as_mut(),
+            scene.frame_start,
+            &into,
+        )?;
+        if s.loaded.meta.backend != if backend.is_gpu() { "gpu" } else { "cpu" } {
+            warnings.push(format!(
+                "resumed a checkpoint made on the {} backend: the frames after it are not those an uninterrupted bake would give",
+                s.loaded.meta.backend
+            ));
+        }
+        report.resumed = Some(crate::report::Resumed {
+            checkpoint: s.checkpoint.display().to_string(),
+            after_frame: s.loaded.meta.frame,
+        });
+        progress = s.loaded.meta.progress;
+    }
     report.warnings = warnings;
     report.characters = characters;
     if let Some(info) = backend.adapter_info() {
@@ -190,16 +259,21 @@ fn run(
             backend: format!("{:?}", info.backend),
         });
     }
-    let progress = progress_bar(scene.frames as u64, options.progress);
+    let bar = progress_bar(scene.frames as u64, options.progress);
     let mut around = frames::run(
         &mut sim,
         &mut backend,
-        &mut meshes,
-        &mut exports,
+        frames::Out {
+            meshes: &mut meshes,
+            exports: &mut exports,
+            checkpoints: writer.as_mut(),
+        },
+        progress,
         &mut report,
-        &progress,
+        &bar,
     )?;
-    progress.finish_and_clear();
+    bar.finish_and_clear();
+    report.checkpoints = writer.as_ref().map(checkpoint::Writer::report);
     let closing = Instant::now();
     let baked = report.frames_baked as usize;
     exports.close(scene, dir, baked, &mut report)?;
@@ -208,6 +282,33 @@ fn run(
     stage_times.add(&around);
     report.stages_ms = StageTiming::of(&stage_times, report.frames_baked);
     Ok((report, sim.export_positions()))
+}
+
+/// The checkpoint to resume from, when the options ask for one (a warning when there is none).
+fn resumed_source(
+    scene: &Scene,
+    options: &BakeOptions,
+    folders: &[PathBuf],
+    shells: &[crate::collide::ShellCollider],
+    warnings: &mut Vec<String>,
+) -> Result<Option<resume::Source>> {
+    if options.resume == Resume::No {
+        return Ok(None);
+    }
+    let id = resume::Identity {
+        scene,
+        file: &options.scene_file,
+        scene_hash: checkpoint::scene_identity(scene).1,
+        shells,
+    };
+    let found = resume::find(folders, options.resume, &id, warnings)?;
+    if found.is_none() {
+        warnings.push(format!(
+            "nothing to resume in {}: baked from the first frame",
+            options.out.display()
+        ));
+    }
+    Ok(found)
 }
 
 fn progress_bar(frames: u64, show: bool) -> indicatif::ProgressBar {

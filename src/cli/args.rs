@@ -38,7 +38,8 @@ pub struct PlanArgs {
     /// `garments[0].mass=0.1,0.2`; several wedges make every combination.
     #[arg(long, value_name = "FIELD=V1,V2,...")]
     pub wedge: Vec<String>,
-    /// Split each bake into sequential tasks of N frames (needs checkpoints: not yet).
+    /// Split each bake into sequential chunks of N frames, each resuming the previous one's
+    /// checkpoint (`chunks/chunk_NN.txt`, `jobs.txt` all of them in order).
     #[arg(long, allow_hyphen_values = true)]
     pub chunk: Option<u32>,
     /// Folder to write the plan into (created; must be empty or absent).
@@ -227,6 +228,22 @@ pub struct BakeArgs {
     /// Also write a USD layer with time-sampled points.
     #[arg(long)]
     pub usd: bool,
+    /// Continue the bake in `--out` from its latest checkpoint (after an interrupt, a crash or
+    /// a pre-emption, or to add frames to a finished bake); from the first frame when there is
+    /// none.
+    #[arg(long)]
+    pub resume: bool,
+    /// Re-simulate from the checkpoint at or before this shot frame, keeping the frames before
+    /// it (implies --resume).
+    #[arg(long, allow_hyphen_values = true)]
+    pub from_frame: Option<u32>,
+    /// Stop after this shot frame, with a checkpoint (a chunk of a farm job: the next chunk
+    /// bakes the same scene with --resume).
+    #[arg(long, allow_hyphen_values = true)]
+    pub until: Option<u32>,
+    /// A checkpoint every this many frames (0: none), overriding the scene's `checkpoint_every`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub checkpoint_every: Option<u32>,
 }
 
 /// glTF container on the command line.

@@ -2,7 +2,7 @@
 
 use super::args::{BackendArg, BakeArgs, GltfArg};
 use super::resolve;
-use drape::bake::{bake, BakeOptions};
+use drape::bake::{bake, BakeOptions, Resume};
 use drape::scene::{BackendKind, GltfOutput};
 use std::path::PathBuf;
 
@@ -31,16 +31,40 @@ fn stop_on_signals() {
     }
 }
 
+/// The command that resumes a bake of `scene` into `out`.
+fn resume_command(scene: &Option<PathBuf>, out: &std::path::Path) -> String {
+    let quote = |p: &std::path::Path| {
+        let s = p.display().to_string();
+        if s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "/._-+=:,".contains(c))
+        {
+            s
+        } else {
+            format!("'{}'", s.replace('\'', "'\\''"))
+        }
+    };
+    let scene = scene.as_deref().map(|s| format!(" {}", quote(s)));
+    format!(
+        "drape bake{} --out {} --resume (with the same flags)",
+        scene.unwrap_or_default(),
+        quote(out)
+    )
+}
+
 // Long: the command in order (scene, flags folded in, bake, the summary it prints), each step a
 // few lines.
 pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     let (mut scene, scene_file) = resolve::scene(&args.scene)?;
+    let scene_arg = args.scene.scene.clone();
     if let Some(b) = args.backend {
         scene.backend = match b {
             BackendArg::Cpu => BackendKind::Cpu,
             BackendArg::Gpu => BackendKind::Gpu,
             BackendArg::Auto => BackendKind::Auto,
         };
+    }
+    if let Some(n) = args.checkpoint_every {
+        scene.checkpoint_every = Some(n);
     }
     let o = &mut scene.output;
     o.preview |= args.preview;
@@ -66,6 +90,12 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         threads: args.threads,
         progress: true,
         shell_cache: args.shell_cache.clone(),
+        resume: match (args.from_frame, args.resume) {
+            (Some(k), _) => Resume::From(k),
+            (None, true) => Resume::Last,
+            (None, false) => Resume::No,
+        },
+        until: args.until,
     };
     stop_on_signals();
     let result = bake(&scene, &options)?;
@@ -121,10 +151,11 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
             _ => "a signal",
         };
         eprintln!(
-            "drape: interrupted by {name} after frame {}: the {} frames baked so far and report.json are in {} (a resumable checkpoint is not written yet: bake again to finish)",
+            "drape: interrupted by {name} after frame {}: the {} frames baked so far, report.json and a checkpoint are in {}; to finish: {}",
             i.after_frame,
             r.frames_baked,
-            result.out.display()
+            result.out.display(),
+            resume_command(&scene_arg, &result.out),
         );
         return Ok(128 + i.signal);
     }

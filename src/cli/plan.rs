@@ -18,6 +18,9 @@ struct Variant {
     name: String,
     text: String,
     characters: bool,
+    /// The shot frame each chunk stops after (`--until`; the last: the shot's last frame), in
+    /// order; empty without chunks.
+    chunks: Vec<u32>,
 }
 
 /// One wedge: the field's path and its values.
@@ -27,12 +30,10 @@ struct Wedge {
 }
 
 pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
-    if let Some(n) = args.chunk {
+    if args.chunk == Some(0) {
         return Err(Error::InvalidArgument {
             flag: "--chunk".into(),
-            reason: format!(
-                "{n}: chunked bakes resume each other's checkpoints, which drape does not write yet; plan whole bakes (without --chunk)"
-            ),
+            reason: "must be at least 1 frame".into(),
         }
         .into());
     }
@@ -93,7 +94,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
         }
         scene["name"] = Value::String(name.clone());
         let text = serde_json::to_string_pretty(&scene).expect("JSON serialises");
-        Scene::parse_in(&text, &format!("{file} ({name})"), &base).map_err(|e| {
+        let parsed = Scene::parse_in(&text, &format!("{file} ({name})"), &base).map_err(|e| {
             Error::InvalidArgument {
                 flag: "--wedge".into(),
                 reason: format!("variant {name}: {e}"),
@@ -106,6 +107,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
             name,
             text,
             characters,
+            chunks: chunks(&parsed, args.chunk),
         });
     }
     write_plan(&args.out, &stem, &variants)?;
@@ -117,6 +119,21 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
         args.out.join("jobs.txt").display()
     );
     Ok(0)
+}
+
+/// The shot frames the chunks of `chunk` frames of `scene` stop after (the last one its last
+/// frame); none without chunks.
+fn chunks(scene: &Scene, chunk: Option<u32>) -> Vec<u32> {
+    let Some(n) = chunk else {
+        return Vec::new();
+    };
+    let mut ends: Vec<u32> = (1..)
+        .map(|k: u32| k.saturating_mul(n))
+        .take_while(|&e| e < scene.frames)
+        .map(|e| scene.frame_start + e - 1)
+        .collect();
+    ends.push(scene.frame_start + scene.frames - 1);
+    ends
 }
 
 /// `FIELD=V1,V2,…`; each value JSON (a number, `true`, `"text"`) or else plain text.
@@ -270,6 +287,8 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
         let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("drape"));
         let exe = exe.display().to_string();
         let (mut jobs, mut shells) = (String::new(), String::new());
+        let chunked = variants.iter().any(|v| !v.chunks.is_empty());
+        let mut chunk_lists: Vec<String> = Vec::new();
         let cache = quoted(&out.join("shells").display().to_string());
         for v in variants {
             let path = scenes.join(format!("{}.json", v.name));
@@ -282,12 +301,41 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
             );
             let bake = quoted(&out.join("bakes").join(&v.name).display().to_string());
             let exe = quoted(&exe);
-            jobs.push_str(&format!("{exe} bake {scene} --out {bake}"));
             if v.characters {
-                jobs.push_str(&format!(" --shell-cache {cache}"));
                 shells.push_str(&format!("{exe} shell {scene} --out {cache}\n"));
             }
-            jobs.push('\n');
+            let ends: Vec<Option<u32>> = if chunked {
+                v.chunks.iter().copied().map(Some).collect()
+            } else {
+                vec![None]
+            };
+            for (k, until) in ends.into_iter().enumerate() {
+                let mut line = format!("{exe} bake {scene} --out {bake}");
+                if v.characters {
+                    line.push_str(&format!(" --shell-cache {cache}"));
+                }
+                if let Some(u) = until {
+                    // Every chunk resumes: the first, re-run after a pre-emption, too.
+                    line.push_str(&format!(" --resume --until {u}"));
+                }
+                line.push('\n');
+                if chunk_lists.len() <= k {
+                    chunk_lists.resize(k + 1, String::new());
+                }
+                chunk_lists[k].push_str(&line);
+            }
+        }
+        // Chunk after chunk: `bash jobs.txt` runs every bake to the end in order.
+        for list in &chunk_lists {
+            jobs.push_str(list);
+        }
+        if chunked {
+            let folder = staging.join("chunks");
+            std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, "cannot create", e))?;
+            for (k, list) in chunk_lists.iter().enumerate() {
+                let path = folder.join(format!("chunk_{:02}.txt", k + 1));
+                std::fs::write(&path, list).map_err(|e| Error::io(&path, "cannot write", e))?;
+            }
         }
         let jobs_path = staging.join("jobs.txt");
         std::fs::write(&jobs_path, jobs).map_err(|e| Error::io(&jobs_path, "cannot write", e))?;
@@ -310,10 +358,10 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
 }
 
 /// The plan as an Open Job Description job template (specification 2023-09): one step whose
-/// tasks range over the variants.
+/// tasks range over the variants; with chunks, one step per chunk, each after the one before,
+/// its tasks pairing each variant with the frame its chunk stops after.
 fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
     let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
-    let names: Vec<String> = variants.iter().map(|v| json(&v.name)).collect();
     let scene = json(&format!(
         "{}/{{{{Task.Param.Variant}}}}.json",
         out.join("scenes").display()
@@ -324,12 +372,24 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
     ));
     let cache = json(&out.join("shells").display().to_string());
     let characters = variants.iter().any(|v| v.characters);
-    // A step over every variant running `args`, after `after` when given.
-    let step = |name: &str, args: &str, after: Option<&str>| {
+    // A step over `tasks` (variant, and the frame its chunk stops after) running `args`, after
+    // `after` when given.
+    let step = |name: &str, tasks: &[(&Variant, Option<u32>)], args: &str, after: Option<&str>| {
+        let names: Vec<String> = tasks.iter().map(|(v, _)| json(&v.name)).collect();
         let mut s = format!(
             "- name: {name}\n  parameterSpace:\n    taskParameterDefinitions:\n    - name: Variant\n      type: STRING\n      range: [{}]\n",
             names.join(", ")
         );
+        if tasks.iter().any(|(_, u)| u.is_some()) {
+            let ends: Vec<String> = tasks
+                .iter()
+                .map(|(_, u)| u.unwrap_or_default().to_string())
+                .collect();
+            s.push_str(&format!(
+                "    - name: Until\n      type: INT\n      range: [{}]\n    combination: \"(Variant, Until)\"\n",
+                ends.join(", ")
+            ));
+        }
         if let Some(a) = after {
             s.push_str(&format!("  dependencies:\n  - dependsOn: {a}\n"));
         }
@@ -343,23 +403,33 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
         "specificationVersion: 'jobtemplate-2023-09'\nname: {}\nsteps:\n",
         json(&format!("drape plan of {stem}"))
     );
+    let all: Vec<(&Variant, Option<u32>)> = variants.iter().map(|v| (v, None)).collect();
+    let mut bake_args = format!("'bake', {scene}, '--out', {bake}");
+    let mut after = None;
     if characters {
         text.push_str(&step(
             "shells",
+            &all,
             &format!("'shell', {scene}, '--out', {cache}"),
             None,
         ));
-        text.push_str(&step(
-            "bake",
-            &format!("'bake', {scene}, '--out', {bake}, '--shell-cache', {cache}"),
-            Some("shells"),
-        ));
-    } else {
-        text.push_str(&step(
-            "bake",
-            &format!("'bake', {scene}, '--out', {bake}"),
-            None,
-        ));
+        bake_args.push_str(&format!(", '--shell-cache', {cache}"));
+        after = Some("shells".to_string());
+    }
+    let chunks = variants.iter().map(|v| v.chunks.len()).max().unwrap_or(0);
+    if chunks == 0 {
+        text.push_str(&step("bake", &all, &bake_args, after.as_deref()));
+        return text;
+    }
+    bake_args.push_str(", '--resume', '--until', '{{Task.Param.Until}}'");
+    for k in 0..chunks {
+        let tasks: Vec<(&Variant, Option<u32>)> = variants
+            .iter()
+            .filter_map(|v| v.chunks.get(k).map(|&u| (v, Some(u))))
+            .collect();
+        let name = format!("bake_{:02}", k + 1);
+        text.push_str(&step(&name, &tasks, &bake_args, after.as_deref()));
+        after = Some(name);
     }
     text
 }

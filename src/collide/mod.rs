@@ -126,7 +126,7 @@ impl Shape {
 }
 
 /// Particles inside one collider at one instant.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Penetration {
     /// Particles whose centre lies inside the solid (signed distance below zero).
     pub inside: usize,

@@ -306,6 +306,21 @@ impl BakeMeshes {
         self.garments.iter().map(|g| &g.triangles[..])
     }
 
+    /// Garment `g` has `faces` from now on (a resumed bake replaying a tear).
+    pub fn set_faces(&mut self, g: usize, faces: &[[u32; 3]]) {
+        self.garments[g].triangles = faces.to_vec();
+    }
+
+    /// The number of garments.
+    pub fn garment_count(&self) -> usize {
+        self.garments.len()
+    }
+
+    /// The number of garment particles a frame takes (export order).
+    pub fn garment_particles(&self) -> usize {
+        self.garments.iter().map(|g| g.export.len()).sum()
+    }
+
     /// Takes the garments' faces after tearing; returns the garments whose faces changed.
     pub fn tear(&mut self, garments: &[GarmentRange]) -> Vec<usize> {
         let mut changed = Vec::new();

@@ -33,6 +33,9 @@ pub struct Staging {
     committed: bool,
     /// What was cleaned up or restored beside the destination (for the report's warnings).
     pub notes: Vec<String>,
+    /// Staging folders of dead runs that hold checkpoints, left for a resumed bake to look in
+    /// (only with [`Staging::resuming`]; [`Staging::commit`] removes them).
+    pub resumable: Vec<PathBuf>,
 }
 
 fn bad_out(reason: String) -> Error {
@@ -45,6 +48,16 @@ fn bad_out(reason: String) -> Error {
 impl Staging {
     /// Creates `.<name>.tmp-<pid>` beside `destination` (creating missing parent folders).
     pub fn new(destination: &Path) -> Result<Staging> {
+        Staging::create(destination, false)
+    }
+
+    /// As [`Staging::new`], but staging folders of dead runs that hold checkpoints are kept
+    /// (listed in `resumable`) for a resumed bake to continue from.
+    pub fn resuming(destination: &Path) -> Result<Staging> {
+        Staging::create(destination, true)
+    }
+
+    fn create(destination: &Path, resuming: bool) -> Result<Staging> {
         let shown = destination.to_path_buf();
         let resolved = resolve(destination)?;
         let name = resolved
@@ -55,7 +68,7 @@ impl Staging {
         let parent = resolved
             .parent()
             .expect("resolved destinations have a parent");
-        let notes = clean_stale(parent, &name, &resolved);
+        let (notes, resumable) = clean_stale(parent, &name, &resolved, resuming);
         if resolved.exists() || resolved.is_symlink() {
             if let Err(why) = replaceable(&resolved) {
                 return Err(bad_out(format!(
@@ -76,7 +89,13 @@ impl Staging {
             temp,
             committed: false,
             notes,
+            resumable,
         })
+    }
+
+    /// The destination, resolved.
+    pub fn destination(&self) -> &Path {
+        &self.destination
     }
 
     /// The temporary folder to write into.
@@ -123,6 +142,10 @@ impl Staging {
                 .map_err(|e| Error::io(&self.shown, "cannot create", e))?;
         }
         self.committed = true;
+        // What the resumed bake took over from dead runs is in the destination now.
+        for stale in &self.resumable {
+            let _ = std::fs::remove_dir_all(stale);
+        }
         Ok(self.shown.clone())
     }
 }
@@ -230,11 +253,18 @@ fn alive(pid: u32) -> bool {
 }
 
 /// Removes staging and set-aside folders of dead processes beside `destination`, first putting
-/// back a previous bake that a killed process had set aside. Returns what it did.
-fn clean_stale(parent: &Path, name: &str, destination: &Path) -> Vec<String> {
+/// back a previous bake that a killed process had set aside; when `resuming`, staging folders
+/// with checkpoints are kept. Returns what it did, and the folders kept.
+fn clean_stale(
+    parent: &Path,
+    name: &str,
+    destination: &Path,
+    resuming: bool,
+) -> (Vec<String>, Vec<PathBuf>) {
     let mut notes = Vec::new();
+    let mut kept = Vec::new();
     let Ok(entries) = std::fs::read_dir(parent) else {
-        return notes;
+        return (notes, kept);
     };
     let (tmp, old) = (format!(".{name}.tmp-"), format!(".{name}.old"));
     let mut stale: Vec<(PathBuf, bool)> = entries
@@ -264,11 +294,15 @@ fn clean_stale(parent: &Path, name: &str, destination: &Path) -> Vec<String> {
             }
             continue;
         }
+        if resuming && !is_old && path.join("checkpoints").is_dir() {
+            kept.push(path);
+            continue;
+        }
         if std::fs::remove_dir_all(&path).is_ok() {
             notes.push(format!(
                 "removed {shown}, left by a run that no longer exists"
             ));
         }
     }
-    notes
+    (notes, kept)
 }

@@ -63,6 +63,14 @@ pub struct Report {
     /// Set when a signal (SIGINT, SIGTERM) stopped the bake early: the frames before it are
     /// written and `stable` still says how they went.
     pub interrupted: Option<Interruption>,
+    /// The shot frame the bake was asked to stop after (`--until`: a chunk of a farm job that
+    /// the next chunk resumes), when it was.
+    pub until: Option<u32>,
+    /// Set when the bake continued from a checkpoint: the frames up to it were replayed from
+    /// that bake's frame log, not simulated again.
+    pub resumed: Option<Resumed>,
+    /// Checkpoints this run wrote into `checkpoints/` (none when `checkpoint_every` is 0).
+    pub checkpoints: Option<CheckpointReport>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.
     pub warnings: Vec<String>,
     /// The characters the garments collided with.
@@ -85,6 +93,28 @@ pub struct Interruption {
     pub signal: i32,
     /// The last frame baked (a shot frame number).
     pub after_frame: u32,
+}
+
+/// Where a resumed bake continued from.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Resumed {
+    /// The checkpoint file (in the output folder, or in a dead run's staging folder).
+    pub checkpoint: String,
+    /// The last frame it holds (a shot frame number); simulation continued after it.
+    pub after_frame: u32,
+}
+
+/// The checkpoints one run wrote.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct CheckpointReport {
+    /// How many, and the shot frame of each.
+    pub frames: Vec<u32>,
+    /// Size of the last one [bytes] (`frames.bin`, the log of every frame, not included).
+    pub bytes: u64,
+    /// Time writing them, all together [ms].
+    pub ms: f64,
+    /// Size of `frames.bin` [bytes].
+    pub frames_log_bytes: u64,
 }
 
 /// One stage's wall time over the bake.
@@ -191,7 +221,7 @@ impl Timing {
 }
 
 /// Accuracy after one frame.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct FrameMetrics {
     /// 1-based frame number.
     pub frame: u32,
@@ -203,7 +233,7 @@ pub struct FrameMetrics {
 }
 
 /// Penetration into one collider.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct ColliderPenetration {
     /// Index in the scene's `colliders`, then the `characters` after them.
     pub collider: usize,
@@ -212,7 +242,7 @@ pub struct ColliderPenetration {
 }
 
 /// Garment particles inside one character's own mesh.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct MeshPenetration {
     pub character: String,
     #[serde(flatten)]
@@ -220,7 +250,7 @@ pub struct MeshPenetration {
 }
 
 /// One frame's penetrations, collider by collider.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct FramePenetrations {
     pub frame: u32,
     pub inside: Vec<usize>,

@@ -73,6 +73,11 @@ pub struct Scene {
     pub output: OutputSpec,
     /// Where to simulate. Default `"auto"`: a hardware GPU when there is one, else the CPU.
     pub backend: BackendKind,
+    /// Write a checkpoint (`checkpoints/` in the output) every this many frames, and always
+    /// after the last, so the bake can be resumed (`drape bake --resume`). Default: after the
+    /// first frame that ends 10 s or more after the previous checkpoint. 0: no checkpoints
+    /// (and no `checkpoints/frames.bin`, the log of every frame that a resume replays).
+    pub checkpoint_every: Option<u32>,
 }
 
 /// Where the simulation runs.
@@ -109,6 +114,7 @@ impl Default for Scene {
             base_dir: std::path::PathBuf::from("."),
             output: OutputSpec::default(),
             backend: BackendKind::Auto,
+            checkpoint_every: None,
         }
     }
 }

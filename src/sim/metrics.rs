@@ -39,7 +39,7 @@ pub fn constraint_error(model: &Model, positions: &[Vec4]) -> ConstraintError {
 }
 
 /// Energies of a state [J].
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Energy {
     /// ½ Σ m |v|².
     pub kinetic: f64,

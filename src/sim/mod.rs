@@ -9,6 +9,7 @@ pub mod integrate;
 pub mod metrics;
 pub mod model;
 pub mod schedule;
+pub mod snapshot;
 pub mod solver;
 pub mod state;
 pub mod team;

@@ -73,8 +73,8 @@ pub fn share(iterations: u32, passes: u32, pass: u32) -> u32 {
 }
 
 /// Names of the timed stages, in `report.json`'s order: the prologue, the substep's stages, and
-/// what runs around the solver (characters' shells, tearing, metrics, exports).
-pub const TIMED: [&str; 10] = [
+/// what runs around the solver (characters' shells, tearing, metrics, exports, checkpoints).
+pub const TIMED: [&str; 11] = [
     "predict",
     "attach",
     "solve",
@@ -85,6 +85,7 @@ pub const TIMED: [&str; 10] = [
     "tearing",
     "metrics",
     "export",
+    "checkpoint",
 ];
 
 impl Stage {

@@ -1,0 +1,142 @@
+//! Everything a simulation carries from one frame to the next, taken out and put back: what a
+//! checkpoint holds, so that a bake resumed from one continues bit for bit as if it had never
+//! stopped (on the CPU backend).
+//!
+//! What a frame start depends on, besides the model and settings the scene rebuilds: positions
+//! and velocities; the clock (substeps so far: characters, keyframes, attachments); the nearby
+//! shell particles each garment particle found at the end of the last substep (the next
+//! substep's collision passes test only those); the fastest driven speed (the stability rule);
+//! and the topology tearing has left. Everything else is rebuilt inside every substep (the
+//! prediction, projections, the particle grid, the shells' positions and grids).
+
+use super::model::Model;
+use super::solver::Solver;
+use super::Simulation;
+use glam::Vec4;
+
+/// The state of a [`Simulation`] between two frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Snapshot {
+    /// Positions and velocities, storage order.
+    pub positions: Vec<Vec4>,
+    pub velocities: Vec<Vec4>,
+    /// Substeps simulated so far.
+    pub elapsed_substeps: u64,
+    /// Fastest any attached particle, keyframed collider or shell has moved [m/s].
+    pub driven_speed: f32,
+    /// Springs broken so far.
+    pub torn_springs: usize,
+    /// Per garment that has torn: what is left of it.
+    pub torn: Vec<TornGarment>,
+    /// Each garment particle's nearby shell particles, per shell (shell-major; empty with one
+    /// collision pass).
+    pub nearby: Vec<crate::collide::shell::Nearby>,
+}
+
+/// What tearing has left of one garment: its springs (as particle pairs, in order) and faces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TornGarment {
+    pub garment: usize,
+    pub springs: Vec<[u32; 2]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Tearing drops a garment's long-range attachments.
+    pub tethers: bool,
+}
+
+impl Simulation {
+    /// The state to resume from after the current frame.
+    pub fn snapshot(&self) -> Snapshot {
+        let torn = self
+            .garments
+            .iter()
+            .enumerate()
+            .filter(|(g, _)| self.tear_strain[*g].is_some())
+            .map(|(garment, g)| TornGarment {
+                garment,
+                springs: g.springs.iter().map(|s| [s.a, s.b]).collect(),
+                triangles: g.triangles.clone(),
+                tethers: !g.tethers.is_empty(),
+            })
+            .collect();
+        Snapshot {
+            positions: self.state.positions.clone(),
+            velocities: self.state.velocities.clone(),
+            elapsed_substeps: self.elapsed_substeps,
+            driven_speed: self.driven_speed,
+            torn_springs: self.torn_springs,
+            torn,
+            nearby: self.nearby.clone(),
+        }
+    }
+
+    /// Puts `snapshot` back into this simulation, freshly built from the same scene: the torn
+    /// topology first (rebuilding model and solver as tearing does), then the state, the clock
+    /// and the colliders' poses. Errors say what does not fit (another garment layout).
+    pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), String> {
+        let n = self.model.particle_count();
+        if snapshot.positions.len() != n || snapshot.velocities.len() != n {
+            return Err(format!(
+                "it holds {} particles, the scene has {n}",
+                snapshot.positions.len()
+            ));
+        }
+        let expected_nearby = if self.solver.settings.contact_passes > 1 {
+            self.shells.len() * n
+        } else {
+            0
+        };
+        if !snapshot.nearby.is_empty() && snapshot.nearby.len() != expected_nearby {
+            return Err("its collision lists do not fit the scene's characters".into());
+        }
+        if !snapshot.torn.is_empty() {
+            for t in &snapshot.torn {
+                let g = self
+                    .garments
+                    .get_mut(t.garment)
+                    .ok_or_else(|| format!("it tears garment {}, which is not there", t.garment))?;
+                // Tearing only removes springs, keeping the order of the rest.
+                let mut kept = t.springs.iter().peekable();
+                g.springs.retain(|s| {
+                    let keep = kept.peek() == Some(&&[s.a, s.b]);
+                    if keep {
+                        kept.next();
+                    }
+                    keep
+                });
+                if kept.next().is_some() {
+                    return Err(format!(
+                        "garment {}'s springs are not those of the scene",
+                        t.garment
+                    ));
+                }
+                g.triangles = t.triangles.clone();
+                if !t.tethers {
+                    g.tethers.clear();
+                }
+            }
+            self.model = Model::new(&self.garments);
+            if self.model.particle_count() != n {
+                return Err("the torn garments do not fit the scene".into());
+            }
+            self.solver = Solver::new(
+                &self.model,
+                self.solver.settings.clone(),
+                self.verlet.map(|v| v.step),
+            );
+            self.projection = vec![Vec4::ZERO; self.model.springs.len()];
+        }
+        self.state.positions = snapshot.positions.clone();
+        self.state.velocities = snapshot.velocities.clone();
+        self.nearby = snapshot.nearby.clone();
+        self.elapsed_substeps = snapshot.elapsed_substeps;
+        self.torn_springs = snapshot.torn_springs;
+        if self.elapsed_substeps > 0 {
+            // Keyframed colliders in their pose at the end of the last substep (the next one
+            // measures its motion from there).
+            let t = self.elapsed_substeps as f32 / (self.substeps as f32 * self.fps);
+            self.pose_colliders(t);
+        }
+        self.driven_speed = snapshot.driven_speed;
+        Ok(())
+    }
+}
