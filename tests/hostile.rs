@@ -220,7 +220,7 @@ fn bad_scenes_are_refused_naming_the_field() {
             ),
             args: bake,
             code: 2,
-            says: &["garments[0].attachments", "pivot", "finite"],
+            says: &["garments[0].attachments[0].pivot[0]", "number out of range"],
             keeps: &[],
             leaves_no: &["out"],
         },

@@ -1,7 +1,8 @@
 //! `drape plan`: a wedge of two fields becomes every combination as a scene and a bake line;
 //! running `jobs.txt` with plain `bash` gives the same frames (bit for bit, `frames_hash`) as
 //! baking the scene with the same values as flags; with a character, `shells.txt` builds its
-//! shell once and every bake reuses it; bad wedges, `--chunk` and a used folder are refused with
+//! shell once and every bake reuses it; a plan in chunks (each resuming the one before) bakes the
+//! same frames run chunk after chunk; bad wedges, `--chunk 0` and a used folder are refused with
 //! exit 2 and nothing written.
 
 mod common;
@@ -87,7 +88,7 @@ fn bad_plans_are_refused_and_write_nothing() {
         (vec!["--wedge", "garments[3].mass=0.1"], "garments[3].mass"),
         (vec!["--wedge", "solver.iterations"], "FIELD=V1,V2"),
         (vec!["--wedge", "frames=0,2"], "frames"),
-        (vec!["--chunk", "10"], "--chunk"),
+        (vec!["--chunk", "0"], "--chunk"),
     ] {
         let mut all = vec!["plan", "scene.json", "--out", "plan"];
         all.extend(args);
@@ -152,4 +153,78 @@ fn a_plan_with_a_character_builds_its_shell_once_and_every_bake_reuses_it() {
         let report: serde_json::Value = serde_json::from_str(&report).unwrap();
         assert_eq!(report["characters"][0]["shell_cache"], "reused");
     }
+}
+
+#[test]
+fn a_plan_in_chunks_run_chunk_after_chunk_bakes_the_whole_shot() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    common::write(
+        d,
+        "scene.json",
+        &SCENE.replace(r#""frames": 3"#, r#""frames": 10, "frame_start": 1001"#),
+    );
+    let out = common::drape(
+        d,
+        &[
+            "plan",
+            "scene.json",
+            "--wedge",
+            "solver.iterations=1,3",
+            "--chunk",
+            "4",
+            "--out",
+            "plan",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let jobs = std::fs::read_to_string(d.join("plan/jobs.txt")).unwrap();
+    // Two variants in three chunks: frames 1001-1004, 1005-1008, 1009-1010.
+    assert_eq!(jobs.lines().count(), 6, "{jobs}");
+    for (k, until) in [(1, 1004), (2, 1008), (3, 1010)] {
+        let chunk =
+            std::fs::read_to_string(d.join(format!("plan/chunks/chunk_{k:02}.txt"))).unwrap();
+        assert_eq!(chunk.lines().count(), 2);
+        assert!(
+            chunk
+                .lines()
+                .all(|l| l.ends_with(&format!("--resume --until {until}"))),
+            "{chunk}"
+        );
+    }
+    let yaml = std::fs::read_to_string(d.join("plan/job.yaml")).unwrap();
+    assert!(
+        yaml.contains("- name: bake_03") && yaml.contains("dependsOn: bake_02"),
+        "{yaml}"
+    );
+    let run = std::process::Command::new("bash")
+        .arg(d.join("plan/jobs.txt"))
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let planned = d.join("plan/bakes/tiny_solver.iterations-3");
+    let direct = common::drape(
+        d,
+        &["bake", "scene.json", "--iterations", "3", "--out", "direct"],
+    );
+    assert!(direct.status.success(), "{}", common::stderr(&direct));
+    assert_eq!(frames_hash(&planned), frames_hash(&d.join("direct")));
+    let mut files = 0;
+    for entry in std::fs::read_dir(d.join("direct/obj")).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap();
+        assert_eq!(
+            std::fs::read(planned.join("obj").join(name)).unwrap(),
+            std::fs::read(&path).unwrap(),
+            "{name:?}"
+        );
+        files += 1;
+    }
+    // Ten frames' OBJ files and their material.
+    assert_eq!(files, 11);
 }

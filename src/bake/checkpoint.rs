@@ -508,3 +508,64 @@ pub fn replay(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn snapshot() -> Snapshot {
+        Snapshot {
+            positions: vec![Vec4::new(1.0, 2.0, 3.0, 0.0); 3],
+            velocities: vec![Vec4::new(-0.5, 0.25, f32::MIN_POSITIVE, 0.0); 3],
+            elapsed_substeps: 123,
+            driven_speed: 0.1,
+            torn_springs: 2,
+            torn: vec![TornGarment {
+                garment: 0,
+                springs: vec![[0, 1]],
+                triangles: vec![[0, 1, 2]],
+                tethers: false,
+            }],
+            nearby: vec![[7; crate::collide::shell::NEARBY]; 3],
+        }
+    }
+
+    fn meta() -> Meta {
+        Meta {
+            drape_version: "test".into(),
+            scene_hash: "a".into(),
+            characters_hash: "b".into(),
+            backend: "cpu".into(),
+            frame: 1001,
+            frames_bytes: 20,
+            elapsed_substeps: 123,
+            driven_speed_bits: 0.1f32.to_bits(),
+            torn_springs: 2,
+            progress: Progress {
+                frame_ms: vec![0.1 + 0.2, 1e-300],
+                ..Progress::default()
+            },
+        }
+    }
+
+    #[test]
+    fn a_checkpoint_reads_back_exactly() {
+        let loaded = decode(&encode(&meta(), &snapshot())).unwrap();
+        assert_eq!(loaded.snapshot, snapshot());
+        assert_eq!(loaded.meta.progress.frame_ms, meta().progress.frame_ms);
+        assert_eq!(loaded.meta.frame, 1001);
+    }
+
+    #[test]
+    fn a_damaged_or_short_checkpoint_is_refused_with_the_reason() {
+        let bytes = encode(&meta(), &snapshot());
+        let mut flipped = bytes.clone();
+        flipped[40] ^= 1;
+        assert!(decode(&flipped).err().unwrap().contains("checksum"));
+        assert!(decode(&bytes[..bytes.len() / 2]).is_err());
+        assert!(decode(b"not a checkpoint at all")
+            .err()
+            .unwrap()
+            .contains("not a drape checkpoint"));
+    }
+}

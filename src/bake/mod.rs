@@ -146,13 +146,19 @@ pub fn output_bytes(scene: &Scene, vertices: u64) -> u64 {
     let spec = &scene.output;
     let frames = scene.frames as u64;
     // Bytes per vertex and frame: OBJ text (v, vt, vn lines and about two faces), glTF
-    // position and normal deltas, PC2 points, USD text (points, normals, extent), the spool.
+    // position and normal deltas, PC2 points, USD text (points, normals, extent), the spool,
+    // the checkpoints' frame log (garments only; counted for every vertex).
     let mut per_vertex = 0;
     per_vertex += if spec.obj { 160 } else { 0 };
     per_vertex += if spec.gltf != GltfOutput::None { 24 } else { 0 };
     per_vertex += if spec.pc2 { 12 } else { 0 };
     per_vertex += if spec.usd { 100 } else { 0 };
     per_vertex += if spec.usd || spec.preview { 12 } else { 0 };
+    per_vertex += if scene.checkpoint_every != Some(0) {
+        12
+    } else {
+        0
+    };
     let images = if spec.preview {
         spec.preview_size[0] as u64 * spec.preview_size[1] as u64 / 2
     } else {
