@@ -28,10 +28,22 @@ fn interpolate(frames: &[Vec<Vec3>], f: f32) -> Vec<Vec3> {
 
 /// [`interpolate`] into `out`, reusing its memory; large shells on every thread of the pool
 /// (each element on its own: the same numbers on any number of threads).
+/// The weight of frame `j` against frame `k` at fractional frame `f`: 0 when they are one frame
+/// (a static shell, or time past the last frame), so the positions are the frame's exactly
+/// (`a.lerp(a, w)` is `a·(1 − w) + a·w`, off by rounding for most `w`: a static stool would sit
+/// a rounding away from itself, by an amount that depends on the time a bake starts at).
+fn weight(f: f32, k: usize, j: usize) -> f32 {
+    if j == k {
+        0.0
+    } else {
+        (f - k as f32).clamp(0.0, 1.0)
+    }
+}
+
 fn interpolate_into(frames: &[Vec<Vec3>], f: f32, out: &mut Vec<Vec3>) {
     let k = (f.floor().max(0.0) as usize).min(frames.len() - 1);
     let j = (k + 1).min(frames.len() - 1);
-    let w = (f - k as f32).clamp(0.0, 1.0);
+    let w = weight(f, k, j);
     out.clear();
     if frames[k].len() != frames[j].len() {
         out.extend_from_slice(&frames[k]);
@@ -334,7 +346,7 @@ impl ShellCollider {
         let last = self.frames.len() - 1;
         let k = (to.floor().max(0.0) as usize).min(last);
         let j = (k + 1).min(last);
-        let w = (to - k as f32).clamp(0.0, 1.0);
+        let w = weight(to, k, j);
         let (a, b) = (&self.frames[k], &self.frames[j]);
         let n = a.len();
         if n < PARALLEL_FROM || b.len() != n || before.len() != n {
@@ -726,6 +738,22 @@ mod tests {
     }
 
     use super::*;
+
+    #[test]
+    fn a_static_shell_sits_exactly_on_its_frame_whenever_the_bake_starts() {
+        // Enough particles for the one-pass advance, and a few for the step-by-step one.
+        for n in [PARALLEL_FROM + 3, 5] {
+            let frame: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(0.1 + i as f32 * 1e-3, 0.45 + (i % 7) as f32 * 0.013, -0.3))
+                .collect();
+            for from in [0.0, 0.35, 185.0] {
+                let mut shell = ShellCollider::new("stool".into(), 0.01, 0.0, vec![frame.clone()]);
+                shell.advance(from, from + 0.05, 0.0025);
+                assert_eq!(shell.now, frame, "{n} particles from frame {from}");
+                assert!(shell.motion.iter().all(|m| *m == Vec3::ZERO));
+            }
+        }
+    }
 
     /// One shell particle at the origin on a skin facing +Y; a garment particle ends 2 mm under
     /// the skin, 5 mm to the side.
