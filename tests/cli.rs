@@ -231,6 +231,17 @@ fn bad_flags_are_input_errors() {
     assert!(err.contains("--frames"), "{err}");
     let err = rejected(GOOD, &["--contact-passes", "0"]);
     assert!(err.contains("--contact-passes"), "{err}");
+    // Frames outside the shot.
+    let err = rejected(GOOD, &["--until", "0"]);
+    assert!(
+        err.contains("--until") && err.contains("not a frame"),
+        "{err}"
+    );
+    let err = rejected(GOOD, &["--frame-start", "1001", "--from-frame", "1000"]);
+    assert!(
+        err.contains("--from-frame") && err.contains("1001"),
+        "{err}"
+    );
 }
 
 #[test]

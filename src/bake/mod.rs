@@ -93,6 +93,7 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         .filter(|&n| n > cores)
         .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
+    check_frame_flags(scene, options)?;
     let staging = if options.resume == Resume::No {
         Staging::new(&options.out)?
     } else {
@@ -126,6 +127,33 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         out,
         positions,
     })
+}
+
+/// `--until` and `--from-frame` name frames of the shot.
+fn check_frame_flags(scene: &Scene, options: &BakeOptions) -> Result<()> {
+    let (first, last) = (
+        scene.frame_start,
+        scene.frame_start + scene.frames.saturating_sub(1),
+    );
+    let flags = [
+        ("--until", options.until),
+        (
+            "--from-frame",
+            match options.resume {
+                Resume::From(k) => Some(k),
+                _ => None,
+            },
+        ),
+    ];
+    for (flag, value) in flags {
+        if let Some(k) = value.filter(|k| !(first..=last).contains(k)) {
+            return Err(Error::InvalidArgument {
+                flag: flag.into(),
+                reason: format!("{k} is not a frame of the shot ({first} to {last})"),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Refuses a bake whose files would not fit on the disk that holds `out` (exit 2 naming
@@ -232,6 +260,7 @@ fn run(
     let mut progress = checkpoint::Progress::default();
     if let Some(s) = source {
         let into = dir.join(checkpoint::FOLDER);
+        let replaying = Instant::now();
         resume::replay(
             &s,
             &mut meshes,
@@ -249,6 +278,7 @@ fn run(
         report.resumed = Some(crate::report::Resumed {
             checkpoint: s.checkpoint.display().to_string(),
             after_frame: s.loaded.meta.frame,
+            replay_ms: replaying.elapsed().as_secs_f64() * 1e3,
         });
         progress = s.loaded.meta.progress;
     }

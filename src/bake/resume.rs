@@ -133,6 +133,14 @@ fn check(
             ),
         ));
     }
+    if meta.drape_version != env!("CARGO_PKG_VERSION") {
+        warnings.push(format!(
+            "the checkpoints in {} were made by drape {}: the frames after frame {} are this version's",
+            dir.display(),
+            meta.drape_version,
+            meta.frame
+        ));
+    }
     if meta.characters_hash != checkpoint::characters_hash(id.shells, meta.progress.baked) {
         let what = format!(
             "the characters' animation differs from the one the checkpoints in {} were made with",

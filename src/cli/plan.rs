@@ -310,13 +310,14 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
                 vec![None]
             };
             for (k, until) in ends.into_iter().enumerate() {
-                let mut line = format!("{exe} bake {scene} --out {bake}");
+                // Every bake resumes: one that a scheduler runs again after a pre-emption
+                // continues from its last checkpoint, and each chunk from the one before.
+                let mut line = format!("{exe} bake {scene} --out {bake} --resume");
                 if v.characters {
                     line.push_str(&format!(" --shell-cache {cache}"));
                 }
                 if let Some(u) = until {
-                    // Every chunk resumes: the first, re-run after a pre-emption, too.
-                    line.push_str(&format!(" --resume --until {u}"));
+                    line.push_str(&format!(" --until {u}"));
                 }
                 line.push('\n');
                 if chunk_lists.len() <= k {
@@ -404,7 +405,7 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
         json(&format!("drape plan of {stem}"))
     );
     let all: Vec<(&Variant, Option<u32>)> = variants.iter().map(|v| (v, None)).collect();
-    let mut bake_args = format!("'bake', {scene}, '--out', {bake}");
+    let mut bake_args = format!("'bake', {scene}, '--out', {bake}, '--resume'");
     let mut after = None;
     if characters {
         text.push_str(&step(
@@ -421,7 +422,7 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
         text.push_str(&step("bake", &all, &bake_args, after.as_deref()));
         return text;
     }
-    bake_args.push_str(", '--resume', '--until', '{{Task.Param.Until}}'");
+    bake_args.push_str(", '--until', '{{Task.Param.Until}}'");
     for k in 0..chunks {
         let tasks: Vec<(&Variant, Option<u32>)> = variants
             .iter()

@@ -102,6 +102,8 @@ pub struct Resumed {
     pub checkpoint: String,
     /// The last frame it holds (a shot frame number); simulation continued after it.
     pub after_frame: u32,
+    /// Time writing the frames up to it again, replayed from its frame log [ms].
+    pub replay_ms: f64,
 }
 
 /// The checkpoints one run wrote.
