@@ -85,6 +85,8 @@ pub struct Meta {
     /// The driven speed's bits (exact).
     pub driven_speed_bits: u32,
     pub torn_springs: usize,
+    /// The force fields' work's bits (exact).
+    pub force_work_bits: u64,
     pub progress: Progress,
 }
 
@@ -95,7 +97,8 @@ pub struct Loaded {
 }
 
 /// The scene as far as it decides the frames: everything but how many frames, what is written,
-/// where it runs and how often checkpoints are taken.
+/// where it runs and how often checkpoints are taken; fields that are null or empty lists are
+/// left out, so a drape that adds an optional field still resumes an older bake's checkpoints.
 pub fn canonical_scene(scene: &Scene) -> serde_json::Value {
     let mut value = serde_json::to_value(scene).expect("scenes serialise");
     if let Some(map) = value.as_object_mut() {
@@ -103,7 +106,20 @@ pub fn canonical_scene(scene: &Scene) -> serde_json::Value {
             map.remove(key);
         }
     }
+    prune(&mut value);
     value
+}
+
+/// Removes null and empty-list members of every object in `value`.
+fn prune(value: &mut serde_json::Value) {
+    match value {
+        serde_json::Value::Object(map) => {
+            map.retain(|_, v| !(v.is_null() || v.as_array().is_some_and(Vec::is_empty)));
+            map.values_mut().for_each(prune);
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(prune),
+        _ => {}
+    }
 }
 
 /// The scene's canonical text ([`canonical_scene`]) and its hex FNV-1a.
@@ -236,6 +252,7 @@ impl Writer {
             elapsed_substeps: snapshot.elapsed_substeps,
             driven_speed_bits: snapshot.driven_speed.to_bits(),
             torn_springs: snapshot.torn_springs,
+            force_work_bits: snapshot.force_work.to_bits(),
             progress: progress.clone(),
         };
         let bytes = encode(&meta, snapshot);
@@ -372,6 +389,7 @@ fn decode(bytes: &[u8]) -> std::result::Result<Loaded, String> {
         elapsed_substeps: meta.elapsed_substeps,
         driven_speed: f32::from_bits(meta.driven_speed_bits),
         torn_springs: meta.torn_springs,
+        force_work: f64::from_bits(meta.force_work_bits),
         torn,
         nearby,
     };
@@ -520,6 +538,7 @@ mod tests {
             elapsed_substeps: 123,
             driven_speed: 0.1,
             torn_springs: 2,
+            force_work: 0.5,
             torn: vec![TornGarment {
                 garment: 0,
                 springs: vec![[0, 1]],
@@ -541,6 +560,7 @@ mod tests {
             elapsed_substeps: 123,
             driven_speed_bits: 0.1f32.to_bits(),
             torn_springs: 2,
+            force_work_bits: 0.5f64.to_bits(),
             progress: Progress {
                 frame_ms: vec![0.1 + 0.2, 1e-300],
                 ..Progress::default()

@@ -174,8 +174,10 @@ fn difference(a: &Value, b: &Value, path: &str) -> Option<(String, String, Strin
                 } else {
                     format!("{path}.{k}")
                 };
-                difference(x.get(k)?, y.get(k)?, &here)
-                    .or_else(|| (x.get(k) != y.get(k)).then(|| (here, show(x, k), show(y, k))))
+                match (x.get(k), y.get(k)) {
+                    (Some(a), Some(b)) => difference(a, b, &here),
+                    _ => Some((here, show(x, k), show(y, k))),
+                }
             })
         }
         (Value::Array(x), Value::Array(y)) if x.len() == y.len() => x

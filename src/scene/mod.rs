@@ -6,9 +6,11 @@
 //! of the field; [`validate`] then rejects impossible values, naming the field and the reason.
 
 mod collider;
+pub mod force;
 pub(crate) mod validate;
 
 pub use collider::{ColliderKind, ColliderShape, ColliderSpec};
+pub use force::ForceSpec;
 pub use validate::{bad_name, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_NAME_BYTES, MAX_PARTICLES};
 
 use crate::error::{Error, Result};
@@ -52,6 +54,8 @@ pub struct Scene {
     pub garments: Vec<GarmentSpec>,
     /// Static analytic colliders. Default none.
     pub colliders: Vec<ColliderSpec>,
+    /// Force fields on the garments: wind, attractors. Default none.
+    pub forces: Vec<ForceSpec>,
     /// Animated characters the garments collide with, through their particle shells. Default none.
     pub characters: Vec<CharacterSpec>,
     /// Particle–particle collisions: a garment against itself and against other garments (CPU
@@ -115,6 +119,7 @@ impl Default for Scene {
             output: OutputSpec::default(),
             backend: BackendKind::Auto,
             checkpoint_every: None,
+            forces: Vec::new(),
         }
     }
 }

@@ -96,6 +96,19 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     for (i, c) in scene.colliders.iter().enumerate() {
         validate_collider(c).map_err(|(f, r)| fail(format!("colliders[{i}].{f}"), r))?;
     }
+    if scene.forces.len() > super::force::MAX_FORCES {
+        return Err(fail(
+            "forces".into(),
+            format!(
+                "{} force fields is more than drape's limit of {}",
+                scene.forces.len(),
+                super::force::MAX_FORCES
+            ),
+        ));
+    }
+    for (i, f) in scene.forces.iter().enumerate() {
+        super::force::validate(f).map_err(|(f, r)| fail(format!("forces[{i}].{f}"), r))?;
+    }
     if let Some(r) = scene.particle_radius {
         positive(r).map_err(|r| fail("particle_radius".into(), r))?;
     }

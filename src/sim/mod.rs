@@ -5,6 +5,7 @@
 
 pub mod attach;
 pub mod constraint;
+pub mod forces;
 pub mod integrate;
 pub mod metrics;
 pub mod model;
@@ -78,6 +79,13 @@ pub struct Simulation {
     pub torn_springs: usize,
     /// Wall time of each stage so far ([`schedule::TIMED`]; the bake adds its own).
     pub stage_times: schedule::StageTimes,
+    /// Wind and attractors, when the scene has force fields.
+    forces: Option<forces::Forces>,
+    /// Their acceleration of each particle in the current substep (empty without).
+    external: Vec<Vec4>,
+    /// Work the force fields have done on the garments so far, the positive part of each
+    /// substep's [J] (energy supplied, for the stability rule).
+    force_work: f64,
 }
 
 impl Simulation {
@@ -131,7 +139,11 @@ impl Simulation {
         let attachments = attach::Attachments::new(&scene.garments, garments, |g, p| {
             model.storage_of[model.garments[g].export.start + p as usize]
         });
+        let forces = forces::Forces::new(&scene.forces, &model);
         Simulation {
+            forces,
+            external: Vec::new(),
+            force_work: 0.0,
             garments: garments.to_vec(),
             tear_strain: scene.garments.iter().map(|g| g.tear_strain).collect(),
             torn_springs: 0,
@@ -212,6 +224,9 @@ impl Simulation {
                 self.verlet.map(|v| v.step),
             );
             self.projection = vec![Vec4::ZERO; self.model.springs.len()];
+            if let Some(f) = &mut self.forces {
+                f.set_faces(&self.model);
+            }
         }
         broken
     }
@@ -229,11 +244,12 @@ impl Simulation {
         if self.shells.is_empty()
             && self.attachments.list.is_empty()
             && self.collider_motion.is_empty()
+            && self.forces.is_none()
         {
             self.run_substeps(self.substeps);
         } else {
-            // Characters and attachment targets move every substep: they advance between team
-            // regions.
+            // Characters, attachment targets and force fields change every substep: they
+            // advance between team regions.
             for _ in 0..self.substeps {
                 self.substep();
             }
@@ -246,9 +262,30 @@ impl Simulation {
         self.advance_shells();
         let placed = self.stage_times.lap(schedule::timed("shells"), start);
         self.place_attachments();
-        self.stage_times
+        let pushed = self
+            .stage_times
             .lap(schedule::Stage::Attach.timed(), placed);
+        if let Some(f) = &mut self.forces {
+            let t = self.elapsed_substeps as f32 / (self.substeps as f32 * self.fps);
+            let (x, v) = (&self.state.positions, &self.state.velocities);
+            f.accelerations(&self.model, x, v, t, &mut self.external);
+            self.stage_times.lap(schedule::timed("forces"), pushed);
+        }
         self.run_substeps(1);
+        if self.forces.is_some() {
+            // The substep moved each particle by v·h: the fields' work is Σ m a·v h.
+            let h = self.step as f64;
+            let work: f64 = (self.external.iter().zip(&self.state.velocities))
+                .zip(&self.model.mass)
+                .map(|((a, v), &m)| m as f64 * a.dot(*v) as f64 * h)
+                .sum();
+            self.force_work += work.max(0.0);
+        }
+    }
+
+    /// True when the scene has force fields (wind, attractors).
+    pub fn has_forces(&self) -> bool {
+        self.forces.is_some()
     }
 
     /// Moves the characters' shells to the end of the coming substep.
@@ -353,12 +390,12 @@ impl Simulation {
 
     /// Kinetic energy attachments, moving colliders and characters may have given the garments
     /// so far: all of their mass at the fastest speed any attached particle, collider or skin
-    /// has been driven [J]. The stability rule counts it as released energy, as it does the
+    /// has been driven, plus the work of the force fields [J]. The stability rule counts it as released energy, as it does the
     /// potential energy: a cloth dragged by its attachments or hit by a moving body gains
     /// kinetic energy without falling.
     pub fn driven_energy(&self) -> f64 {
         let mass: f64 = self.model.mass.iter().map(|&m| m as f64).sum();
-        0.5 * mass * (self.driven_speed as f64).powi(2)
+        0.5 * mass * (self.driven_speed as f64).powi(2) + self.force_work
     }
 
     /// Potential energy that single-precision positions may have hidden so far [J]: each
@@ -433,6 +470,7 @@ impl Simulation {
             velocities,
             pushes: self.particle_collisions.is_some().then_some(pushes),
             nearby,
+            external: &self.external,
         };
         let solver = &self.solver;
         let particles = self.particle_collisions.as_ref();
@@ -569,6 +607,8 @@ struct Stages<'a> {
     pushes: Option<Shared<Vec4>>,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     nearby: Shared<crate::collide::shell::Nearby>,
+    /// Each particle's acceleration by the force fields (empty without).
+    external: &'a [Vec4],
 }
 
 impl Stages<'_> {
@@ -615,6 +655,10 @@ impl Stages<'_> {
     #[inline(always)]
     unsafe fn predict_one(&self, i: usize) {
         let t = match self.verlet {
+            Some(v) if !self.external.is_empty() => {
+                v.inertial_displacement(self.velocities.get(i))
+                    + self.external[i] * (v.step * v.step)
+            }
             Some(v) => v.inertial_displacement(self.velocities.get(i)),
             None => Vec4::ZERO,
         };

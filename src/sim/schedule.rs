@@ -74,9 +74,10 @@ pub fn share(iterations: u32, passes: u32, pass: u32) -> u32 {
 
 /// Names of the timed stages, in `report.json`'s order: the prologue, the substep's stages, and
 /// what runs around the solver (characters' shells, tearing, metrics, exports, checkpoints).
-pub const TIMED: [&str; 11] = [
+pub const TIMED: [&str; 12] = [
     "predict",
     "attach",
+    "forces",
     "solve",
     "contact_pass",
     "particle_collisions",
@@ -93,10 +94,10 @@ impl Stage {
     pub fn timed(self) -> usize {
         match self {
             Stage::Attach => 1,
-            Stage::Solve { .. } => 2,
-            Stage::ContactPass => 3,
-            Stage::ParticleCollisions => 4,
-            Stage::Finish => 5,
+            Stage::Solve { .. } => 3,
+            Stage::ContactPass => 4,
+            Stage::ParticleCollisions => 5,
+            Stage::Finish => 6,
         }
     }
 }

@@ -26,6 +26,8 @@ pub struct Snapshot {
     pub driven_speed: f32,
     /// Springs broken so far.
     pub torn_springs: usize,
+    /// Work of the force fields so far [J].
+    pub force_work: f64,
     /// Per garment that has torn: what is left of it.
     pub torn: Vec<TornGarment>,
     /// Each garment particle's nearby shell particles, per shell (shell-major; empty with one
@@ -64,6 +66,7 @@ impl Simulation {
             elapsed_substeps: self.elapsed_substeps,
             driven_speed: self.driven_speed,
             torn_springs: self.torn_springs,
+            force_work: self.force_work,
             torn,
             nearby: self.nearby.clone(),
         }
@@ -124,12 +127,16 @@ impl Simulation {
                 self.verlet.map(|v| v.step),
             );
             self.projection = vec![Vec4::ZERO; self.model.springs.len()];
+            if let Some(f) = &mut self.forces {
+                f.set_faces(&self.model);
+            }
         }
         self.state.positions = snapshot.positions.clone();
         self.state.velocities = snapshot.velocities.clone();
         self.nearby = snapshot.nearby.clone();
         self.elapsed_substeps = snapshot.elapsed_substeps;
         self.torn_springs = snapshot.torn_springs;
+        self.force_work = snapshot.force_work;
         if self.elapsed_substeps > 0 {
             // Keyframed colliders in their pose at the end of the last substep (the next one
             // measures its motion from there).
