@@ -55,6 +55,9 @@ pub struct Progress {
     pub initial_energy: Energy,
     /// The report's per-frame fields so far.
     pub measured: Measured,
+    /// With accuracy targets: the budget's state and every frame's budget so far.
+    pub budget: super::budget::BudgetState,
+    pub budget_frames: Vec<super::budget::FrameBudget>,
 }
 
 /// The report's per-frame fields.

@@ -1,6 +1,7 @@
 //! The frame loop: step, tear, measure and write each frame as it is made (with a checkpoint
 //! now and then), until the last, until the simulation becomes unstable or until a signal.
 
+use super::budget::{BudgetReport, FrameBudget, Targets, CALM_FRAMES};
 use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics};
@@ -31,6 +32,7 @@ pub fn run(
         meshes,
         exports,
         mut checkpoints,
+        targets,
     } = out;
     let frames = report.frames_requested;
     if progress.baked == 0 {
@@ -50,7 +52,10 @@ pub fn run(
         // The shot's number of this frame (`frame_start`): what files and the report show.
         let frame = report.frame_start + baked - 1;
         let start = Instant::now();
-        backend.step_frame(sim)?;
+        match targets {
+            Some(t) => step_within(t, sim, backend, meshes, (frame, baked - 1), &mut progress)?,
+            None => backend.step_frame(sim)?,
+        }
         if let Some(bytes) = backend.uploaded_last_frame() {
             progress.uploaded += bytes;
         }
@@ -132,6 +137,9 @@ pub fn run(
             Some(progress.uploaded / (progress.frame_ms.len() as u64).max(1));
     }
     report.frames_hash = format!("{:016x}", progress.hash);
+    if let Some(t) = targets {
+        report.budget = Some(BudgetReport::of(t, &progress.budget_frames));
+    }
     report.torn_springs = sim.torn_springs;
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&progress.worst);
@@ -146,6 +154,8 @@ pub struct Out<'a> {
     pub meshes: &'a mut BakeMeshes,
     pub exports: &'a mut Exports,
     pub checkpoints: Option<&'a mut checkpoint::Writer>,
+    /// Accuracy targets that choose each frame's budget.
+    pub targets: Option<&'a Targets>,
 }
 
 impl Measured {
@@ -168,6 +178,96 @@ impl Measured {
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
     }
+}
+
+/// Steps frame `frame` (baked frame `index`) within the accuracy `targets`: simulated again from its start state at
+/// the next budget while it misses one (up to the ladder's cap), then one budget lower for the
+/// next frame after a calm stretch. Records the frame's budget in `progress`.
+fn step_within(
+    t: &Targets,
+    sim: &mut Simulation,
+    backend: &mut Backend,
+    meshes: &BakeMeshes,
+    (frame, index): (u32, u32),
+    progress: &mut Progress,
+) -> Result<()> {
+    let index = index as usize;
+    let before = sim.snapshot();
+    let mut attempts = 1;
+    let mut why = std::mem::take(&mut progress.budget.pending_why);
+    let (strain, depth) = loop {
+        backend.step_frame(sim)?;
+        let (strain, depth) = accuracy_of(sim, meshes, index);
+        match t.missed(strain, depth) {
+            Some(reason) if progress.budget.level + 1 < t.levels.len() => {
+                sim.restore(&before)
+                    .expect("a simulation takes its own snapshot");
+                progress.budget.level += 1;
+                progress.budget.calm = 0;
+                t.apply(sim, progress.budget.level);
+                let (s, i) = t.levels[progress.budget.level];
+                why = format!("{reason}: raised to {s} substeps × {i} iterations");
+                attempts += 1;
+            }
+            _ => break (strain, depth),
+        }
+    };
+    let settings = sim.solver_settings();
+    progress.budget_frames.push(FrameBudget {
+        frame,
+        substeps: sim.substeps,
+        iterations: settings.iterations,
+        contact_passes: settings.contact_passes,
+        attempts,
+        why,
+        max_strain: strain,
+        deepest_penetration: depth,
+    });
+    let top = t.levels.len() - 1;
+    if t.close(strain, depth) && progress.budget.level < top {
+        progress.budget.level += 1;
+        progress.budget.calm = 0;
+        t.apply(sim, progress.budget.level);
+        progress.budget.pending_why =
+            "the last frame came within a quarter of a target: raised".into();
+    } else if t.calm(strain, depth) {
+        progress.budget.calm += 1;
+        if progress.budget.calm >= CALM_FRAMES && progress.budget.level > 0 {
+            progress.budget.level -= 1;
+            progress.budget.calm = 0;
+            t.apply(sim, progress.budget.level);
+            progress.budget.pending_why =
+                format!("{CALM_FRAMES} frames with half the margin to spare: lowered");
+        }
+    } else {
+        progress.budget.calm = 0;
+    }
+    Ok(())
+}
+
+/// The worst structural strain of `sim` now and the deepest any free particle is inside a
+/// collider, a shell or a character's mesh (at baked frame `index`) [m].
+fn accuracy_of(sim: &Simulation, meshes: &BakeMeshes, index: usize) -> (f64, f32) {
+    let strain = sim.constraint_error().max_strain;
+    let free = sim.free_positions();
+    let mut deepest = collide::penetrations(&sim.colliders, &free)
+        .iter()
+        .chain(
+            sim.shells
+                .iter()
+                .map(|s| s.penetration(&free))
+                .collect::<Vec<_>>()
+                .iter(),
+        )
+        .map(|p| p.deepest)
+        .fold(0.0f32, f32::max);
+    let points: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
+    for (_, vertices, triangles) in meshes.characters_at(index) {
+        let normals = crate::export::obj::vertex_normals(triangles, vertices);
+        let p = collide::mesh::penetration(vertices, triangles, &normals, &points);
+        deepest = deepest.max(p.deepest);
+    }
+    (strain, deepest)
 }
 
 /// Measures how many of the `free` garment particles lie inside each character's own mesh at

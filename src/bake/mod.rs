@@ -8,6 +8,7 @@
 //! run that turns unstable stops at that frame: the frames baked so far and a report that says
 //! what happened are still moved into place, so the user can see where it went wrong.
 
+pub mod budget;
 pub mod characters;
 pub mod checkpoint;
 mod frames;
@@ -234,6 +235,14 @@ fn run(
     let mut report = report::empty_report(scene, options, &sim, threads);
     report.until = options.until;
     let source = resumed_source(scene, options, resume_from, &sim.shells, &mut warnings)?;
+    let targets = budget::Targets::of(scene);
+    if let Some(t) = &targets {
+        // The budget the frame after the checkpoint starts at (the cheapest on a fresh bake).
+        let level = source
+            .as_ref()
+            .map_or(0, |s| s.loaded.meta.progress.budget.level);
+        t.apply(&mut sim, level.min(t.levels.len() - 1));
+    }
     if let Some(s) = &source {
         sim.restore(&s.loaded.snapshot)
             .map_err(|reason| Error::InvalidField {
@@ -242,7 +251,20 @@ fn run(
                 reason: format!("does not fit the scene: {reason}"),
             })?;
     }
-    let mut backend = Backend::for_scene(scene.backend, &sim, &mut warnings)?;
+    let kind = match (&targets, scene.backend) {
+        (None, kind) | (_, kind @ crate::scene::BackendKind::Cpu) => kind,
+        (Some(_), crate::scene::BackendKind::Gpu) => {
+            return Err(Error::InvalidArgument {
+                flag: "backend".into(),
+                reason: "gpu: accuracy targets re-simulate frames on the CPU backend only; use `cpu` or `auto`".into(),
+            })
+        }
+        (Some(_), crate::scene::BackendKind::Auto) => {
+            warnings.push("backend auto: accuracy targets choose the budget on the CPU backend only; simulating on the CPU".into());
+            crate::scene::BackendKind::Cpu
+        }
+    };
+    let mut backend = Backend::for_scene(kind, &sim, &mut warnings)?;
     let vertices = meshes.info.iter().map(|m| m.vertices as u64).sum();
     check_disk(scene, vertices, &options.scene_file, &options.out)?;
     // While the GPU simulates the CPU is free to write; on the CPU a writer thread would only
@@ -303,6 +325,7 @@ fn run(
             meshes: &mut meshes,
             exports: &mut exports,
             checkpoints: writer.as_mut(),
+            targets: targets.as_ref(),
         },
         progress,
         &mut report,

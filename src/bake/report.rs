@@ -69,6 +69,7 @@ pub(super) fn empty_report(
         until: None,
         resumed: None,
         checkpoints: None,
+        budget: None,
         warnings: Vec::new(),
         characters: Vec::new(),
         residuals: None,

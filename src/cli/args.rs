@@ -190,6 +190,14 @@ pub struct SceneArgs {
     /// Substeps per frame, overriding the scene's.
     #[arg(long, allow_hyphen_values = true)]
     pub substeps: Option<u32>,
+    /// Accuracy target: the largest structural strain any frame may have (0.05: 5 %); drape
+    /// then chooses the substeps and iterations the scene leaves out.
+    #[arg(long, allow_hyphen_values = true)]
+    pub max_strain: Option<f32>,
+    /// Accuracy target: the deepest any garment particle may be inside a collider, shell or
+    /// character [m].
+    #[arg(long, allow_hyphen_values = true)]
+    pub max_penetration: Option<f32>,
 }
 
 #[derive(Args, Debug)]

@@ -159,6 +159,16 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         );
         return Ok(128 + i.signal);
     }
+    if let Some(b) = r.budget.as_ref().filter(|b| !b.met) {
+        let (s, i) = b.levels[b.levels.len() - 1];
+        eprintln!(
+            "drape: error: some frames missed the accuracy targets even at the largest budget ({s} substeps × {i} iterations): worst strain {:.2} %, deepest penetration {:.2} mm; the frames and report.json (budget.per_frame) are in {}",
+            b.max_strain_reached * 100.0,
+            b.deepest_penetration_reached * 1e3,
+            result.out.display()
+        );
+        return Ok(1);
+    }
     match &r.failure {
         Some(f) => {
             eprintln!(

@@ -39,6 +39,7 @@ pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
     }
     if let Some(n) = args.iterations {
         scene.solver.iterations = n;
+        scene.iterations_given = true;
         scene.solver.contact_passes = scene.solver.contact_passes.min(n.max(1));
         scene::validate(&scene, &file).map_err(|e| flag("--iterations", e))?;
     }
@@ -54,6 +55,20 @@ pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
         scene.substeps = Some(n);
         scene.timestep = None;
         scene::validate(&scene, &file).map_err(|e| flag("--substeps", e))?;
+    }
+    for (name, value) in [
+        ("--max-strain", args.max_strain),
+        ("--max-penetration", args.max_penetration),
+    ] {
+        if let Some(v) = value {
+            let a = scene.accuracy.get_or_insert_with(Default::default);
+            if name == "--max-strain" {
+                a.max_strain = Some(v);
+            } else {
+                a.max_penetration = Some(v);
+            }
+            scene::validate(&scene, &file).map_err(|e| flag(name, e))?;
+        }
     }
     Ok((scene, file))
 }

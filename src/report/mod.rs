@@ -69,6 +69,8 @@ pub struct Report {
     /// Set when the bake continued from a checkpoint: the frames up to it were replayed from
     /// that bake's frame log, not simulated again.
     pub resumed: Option<Resumed>,
+    /// With accuracy targets: the budget chosen for every frame, why, and what it reached.
+    pub budget: Option<crate::bake::budget::BudgetReport>,
     /// Checkpoints this run wrote into `checkpoints/` (none when `checkpoint_every` is 0).
     pub checkpoints: Option<CheckpointReport>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.

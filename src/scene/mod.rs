@@ -56,6 +56,13 @@ pub struct Scene {
     pub colliders: Vec<ColliderSpec>,
     /// Force fields on the garments: wind, attractors. Default none.
     pub forces: Vec<ForceSpec>,
+    /// Accuracy the bake must reach in every frame; drape then chooses the substeps, iterations
+    /// and collision passes the scene leaves out (`bake::budget`). Default none.
+    pub accuracy: Option<AccuracySpec>,
+    /// True when the scene (or a flag) gave `solver.iterations` (an accuracy target leaves it
+    /// fixed). Not a scene field.
+    #[serde(skip)]
+    pub iterations_given: bool,
     /// Animated characters the garments collide with, through their particle shells. Default none.
     pub characters: Vec<CharacterSpec>,
     /// Particle–particle collisions: a garment against itself and against other garments (CPU
@@ -82,6 +89,17 @@ pub struct Scene {
     /// first frame that ends 10 s or more after the previous checkpoint. 0: no checkpoints
     /// (and no `checkpoints/frames.bin`, the log of every frame that a resume replays).
     pub checkpoint_every: Option<u32>,
+}
+
+/// Accuracy targets: the worst structural strain and the deepest penetration any frame may have.
+#[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct AccuracySpec {
+    /// Largest structural strain in any frame (0.05: 5 %).
+    pub max_strain: Option<f32>,
+    /// Deepest a free garment particle may be inside a collider, a character's shell or its
+    /// mesh in any frame [m].
+    pub max_penetration: Option<f32>,
 }
 
 /// Where the simulation runs.
@@ -120,6 +138,8 @@ impl Default for Scene {
             backend: BackendKind::Auto,
             checkpoint_every: None,
             forces: Vec::new(),
+            accuracy: None,
+            iterations_given: false,
         }
     }
 }
@@ -593,6 +613,11 @@ impl Scene {
         })?;
         de.end().map_err(|e| top_level_syntax(file, &e))?;
         check_shapes(text, &scene, file)?;
+        let mut scene = scene;
+        scene.iterations_given = serde_json::from_str::<serde_json::Value>(text)
+            .ok()
+            .and_then(|v| v.get("solver")?.get("iterations").cloned())
+            .is_some();
         validate(&scene, file)?;
         Ok(scene)
     }

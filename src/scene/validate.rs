@@ -109,6 +109,16 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     for (i, f) in scene.forces.iter().enumerate() {
         super::force::validate(f).map_err(|(f, r)| fail(format!("forces[{i}].{f}"), r))?;
     }
+    if let Some(a) = &scene.accuracy {
+        for (name, v) in [
+            ("max_strain", a.max_strain),
+            ("max_penetration", a.max_penetration),
+        ] {
+            if let Some(v) = v {
+                positive(v).map_err(|r| fail(format!("accuracy.{name}"), r))?;
+            }
+        }
+    }
     if let Some(r) = scene.particle_radius {
         positive(r).map_err(|r| fail("particle_radius".into(), r))?;
     }

@@ -52,6 +52,8 @@ pub struct Simulation {
     pub substeps: u32,
     /// Length of one substep [s].
     pub step: f32,
+    /// Velocity damping rate [1/s] (the integrator's constants follow the step).
+    damping: f32,
     pub gravity: Vec3,
     /// When set, the total squared error after every sweep of the current frame.
     pub residuals: Option<Vec<f64>>,
@@ -183,6 +185,7 @@ impl Simulation {
             shells: Vec::new(),
             elapsed_substeps: 0,
             verlet: integrating.then(|| Verlet::new(gravity, scene.damping, step)),
+            damping: scene.damping,
             substeps: scene.substeps_per_frame(),
             step,
             gravity,
@@ -281,6 +284,30 @@ impl Simulation {
                 .sum();
             self.force_work += work.max(0.0);
         }
+    }
+
+    /// Runs the next frames with `substeps` per frame, `iterations` outer iterations and
+    /// `contact_passes` collision passes (an accuracy target's budget; between frames only).
+    pub fn set_budget(&mut self, substeps: u32, iterations: u32, contact_passes: u32) {
+        let settings = &self.solver.settings;
+        if substeps == self.substeps
+            && iterations == settings.iterations
+            && contact_passes == settings.contact_passes
+        {
+            return;
+        }
+        // At a frame's end the clock is a whole number of frames.
+        let frames = self.elapsed_substeps / self.substeps as u64;
+        self.elapsed_substeps = frames * substeps as u64;
+        self.substeps = substeps;
+        self.step = 1.0 / (self.fps * substeps as f32);
+        if self.verlet.is_some() {
+            self.verlet = Some(Verlet::new(self.gravity, self.damping, self.step));
+        }
+        let mut settings = self.solver.settings.clone();
+        settings.iterations = iterations;
+        settings.contact_passes = contact_passes;
+        self.solver = Solver::new(&self.model, settings, self.verlet.map(|v| v.step));
     }
 
     /// True when the scene has force fields (wind, attractors).

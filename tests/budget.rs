@@ -1,0 +1,119 @@
+//! Accuracy targets choose the budget: every frame of a bake with a target meets it (or the
+//! report says it could not, and the command exits 1 with the frames kept); a loose target stays
+//! at the cheapest budget, a tight one spends more; substeps the scene gives stay fixed; the
+//! choices are the same on every run.
+
+mod common;
+
+use drape::bake::{bake, BakeOptions, Resume};
+use drape::scene::Scene;
+
+/// A 16 × 16 sheet pinned at two corners, falling and swinging, with `accuracy` and `extra`
+/// top-level fields.
+fn sheet(accuracy: &str, extra: &str) -> Scene {
+    common::scene(&format!(
+        r#"{{ "frames": 24, "backend": "cpu", "accuracy": {accuracy}{extra},
+              "output": {{ "obj": false, "gltf": "none" }},
+              "garments": [{{ "resolution": [16, 16], "size": [1, 1], "pins": [[0, 0], [-1, 0]] }}] }}"#
+    ))
+}
+
+fn run(scene: &Scene) -> drape::report::Report {
+    let dir = common::temp_dir();
+    let options = BakeOptions {
+        out: dir.path().join("out"),
+        scene_file: "<test scene>".into(),
+        threads: Some(2),
+        progress: false,
+        shell_cache: None,
+        resume: Resume::No,
+        until: None,
+    };
+    bake(scene, &options).expect("bake").report
+}
+
+fn mean_substeps(report: &drape::report::Report) -> f64 {
+    let frames = &report.budget.as_ref().unwrap().per_frame;
+    frames.iter().map(|f| f.substeps as f64).sum::<f64>() / frames.len() as f64
+}
+
+#[test]
+fn every_frame_meets_its_target_and_a_tighter_target_costs_more() {
+    let loose = run(&sheet(r#"{ "max_strain": 0.5 }"#, ""));
+    let tight = run(&sheet(r#"{ "max_strain": 0.01 }"#, ""));
+    for report in [&loose, &tight] {
+        let b = report.budget.as_ref().unwrap();
+        assert!(b.met, "{:?}", b.per_frame);
+        assert_eq!(b.per_frame.len(), 24);
+        let target = b.max_strain.unwrap();
+        for f in &b.per_frame {
+            assert!(
+                f.max_strain <= target,
+                "frame {}: {}",
+                f.frame,
+                f.max_strain
+            );
+        }
+        // The report's own strain measure agrees with the budget's.
+        let worst = report.worst_frame.as_ref().unwrap().max_strain;
+        assert!(worst <= target + 1e-12, "{worst}");
+    }
+    let cheapest = drape::bake::budget::LADDER[0];
+    assert!(loose
+        .budget
+        .as_ref()
+        .unwrap()
+        .per_frame
+        .iter()
+        .all(|f| (f.substeps, f.iterations) == cheapest));
+    assert!(mean_substeps(&tight) > mean_substeps(&loose));
+    assert!(tight
+        .budget
+        .as_ref()
+        .unwrap()
+        .per_frame
+        .iter()
+        .any(|f| f.attempts > 1 || !f.why.is_empty()));
+    // The same choices on another run.
+    let again = run(&sheet(r#"{ "max_strain": 0.01 }"#, ""));
+    assert_eq!(again.frames_hash, tight.frames_hash);
+    assert_eq!(again.budget, tight.budget);
+}
+
+#[test]
+fn substeps_the_scene_gives_stay_fixed() {
+    let report = run(&sheet(r#"{ "max_strain": 0.01 }"#, r#", "substeps": 7"#));
+    assert!(report
+        .budget
+        .as_ref()
+        .unwrap()
+        .per_frame
+        .iter()
+        .all(|f| f.substeps == 7));
+}
+
+#[test]
+fn a_target_no_budget_meets_fails_with_the_frames_kept() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    let text = r#"{ "frames": 3, "backend": "cpu", "accuracy": { "max_strain": 1e-9 },
+                    "garments": [{ "resolution": [8, 8], "pins": [[0, 0]] }] }"#;
+    common::write(d, "scene.json", text);
+    let out = common::drape(d, &["bake", "scene.json", "--out", "out"]);
+    let err = common::stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("accuracy targets"), "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("out/report.json")).unwrap()).unwrap();
+    assert_eq!(report["frames_baked"], 3);
+    assert_eq!(report["budget"]["met"], false);
+    let last = drape::bake::budget::LADDER[drape::bake::budget::LADDER.len() - 1];
+    assert_eq!(report["budget"]["per_frame"][2]["substeps"], last.0);
+    // A flag sets the target too; a bad one is named.
+    let out = common::drape(
+        d,
+        &["bake", "scene.json", "--out", "out2", "--max-strain", "-1"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(common::stderr(&out).contains("--max-strain"));
+}
