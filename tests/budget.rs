@@ -5,7 +5,7 @@
 
 mod common;
 
-use drape::bake::{bake, BakeOptions, Resume};
+use drape::bake::bake;
 use drape::scene::Scene;
 
 /// A 16 × 16 sheet pinned at two corners, falling and swinging, with `accuracy` and `extra`
@@ -20,15 +20,7 @@ fn sheet(accuracy: &str, extra: &str) -> Scene {
 
 fn run(scene: &Scene) -> drape::report::Report {
     let dir = common::temp_dir();
-    let options = BakeOptions {
-        out: dir.path().join("out"),
-        scene_file: "<test scene>".into(),
-        threads: Some(2),
-        progress: false,
-        shell_cache: None,
-        resume: Resume::No,
-        until: None,
-    };
+    let options = common::bake_options(&dir.path().join("out"));
     bake(scene, &options).expect("bake").report
 }
 

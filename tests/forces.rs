@@ -25,15 +25,7 @@ fn sheet(frames: u32, forces: &str) -> Scene {
 
 fn bake_positions(scene: &Scene) -> (Vec<Vec3>, drape::report::Report) {
     let dir = common::temp_dir();
-    let options = BakeOptions {
-        out: dir.path().join("out"),
-        scene_file: "<test scene>".into(),
-        threads: Some(2),
-        progress: false,
-        shell_cache: None,
-        resume: Resume::No,
-        until: None,
-    };
+    let options = common::bake_options(&dir.path().join("out"));
     let result = bake(scene, &options).expect("bake");
     assert!(result.report.stable, "{:?}", result.report.failure);
     (result.positions, result.report)

@@ -27,13 +27,9 @@ fn torn_cloth() -> Scene {
 
 fn options(out: &Path, resume: Resume, until: Option<u32>) -> BakeOptions {
     BakeOptions {
-        out: out.to_path_buf(),
-        scene_file: "<test scene>".into(),
-        threads: Some(2),
-        progress: false,
-        shell_cache: Some(out.with_file_name("cache")),
         resume,
         until,
+        ..common::bake_options(out)
     }
 }
 

@@ -40,6 +40,7 @@ pub const DEFAULT_INTERVAL: Duration = Duration::from_secs(10);
 /// The frame loop's running measures: what the report sums up at the end, carried through a
 /// checkpoint so a resumed bake reports every frame.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Progress {
     /// Frames baked so far.
     pub baked: u32,
@@ -88,7 +89,9 @@ pub struct Meta {
     /// The driven speed's bits (exact).
     pub driven_speed_bits: u32,
     pub torn_springs: usize,
-    /// The force fields' work's bits (exact).
+    /// The force fields' work's bits (exact; absent in checkpoints of drape before force
+    /// fields: none).
+    #[serde(default)]
     pub force_work_bits: u64,
     pub progress: Progress,
 }

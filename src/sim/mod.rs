@@ -220,18 +220,24 @@ impl Simulation {
         }
         if broken > 0 {
             self.torn_springs += broken;
-            self.model = Model::new(&self.garments);
-            self.solver = Solver::new(
-                &self.model,
-                self.solver.settings.clone(),
-                self.verlet.map(|v| v.step),
-            );
-            self.projection = vec![Vec4::ZERO; self.model.springs.len()];
-            if let Some(f) = &mut self.forces {
-                f.set_faces(&self.model);
-            }
+            self.rebuild_model();
         }
         broken
+    }
+
+    /// The model, solver and faces built again from the garments (after tearing changed them;
+    /// particle storage order stays the same).
+    fn rebuild_model(&mut self) {
+        self.model = Model::new(&self.garments);
+        self.solver = Solver::new(
+            &self.model,
+            self.solver.settings.clone(),
+            self.verlet.map(|v| v.step),
+        );
+        self.projection = vec![Vec4::ZERO; self.model.springs.len()];
+        if let Some(f) = &mut self.forces {
+            f.set_faces(&self.model);
+        }
     }
 
     /// True when some garment can tear.

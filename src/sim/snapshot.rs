@@ -9,8 +9,6 @@
 //! and the topology tearing has left. Everything else is rebuilt inside every substep (the
 //! prediction, projections, the particle grid, the shells' positions and grids).
 
-use super::model::Model;
-use super::solver::Solver;
 use super::Simulation;
 use glam::Vec4;
 
@@ -125,18 +123,9 @@ impl Simulation {
                     g.tethers.clear();
                 }
             }
-            self.model = Model::new(&self.garments);
+            self.rebuild_model();
             if self.model.particle_count() != n {
                 return Err("the torn garments do not fit the scene".into());
-            }
-            self.solver = Solver::new(
-                &self.model,
-                self.solver.settings.clone(),
-                self.verlet.map(|v| v.step),
-            );
-            self.projection = vec![Vec4::ZERO; self.model.springs.len()];
-            if let Some(f) = &mut self.forces {
-                f.set_faces(&self.model);
             }
         }
         self.state.positions = snapshot.positions.clone();

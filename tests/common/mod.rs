@@ -105,3 +105,16 @@ pub fn bake_report(dir: &Path) -> serde_json::Value {
     assert!(out.status.success(), "{}", stderr(&out));
     serde_json::from_str(&std::fs::read_to_string(dir.join("out/report.json")).unwrap()).unwrap()
 }
+
+/// Options for a library bake into `out` on 2 threads, no progress bar, from the first frame.
+pub fn bake_options(out: &Path) -> drape::bake::BakeOptions {
+    drape::bake::BakeOptions {
+        out: out.to_path_buf(),
+        scene_file: "<test scene>".into(),
+        threads: Some(2),
+        progress: false,
+        shell_cache: Some(out.with_file_name("cache")),
+        resume: drape::bake::Resume::No,
+        until: None,
+    }
+}
