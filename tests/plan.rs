@@ -18,6 +18,20 @@ fn frames_hash(dir: &Path) -> String {
     report["frames_hash"].as_str().unwrap().to_string()
 }
 
+/// Runs `plan/jobs.txt` in `d` with plain `bash`.
+fn run_jobs(d: &Path) {
+    let run = std::process::Command::new("bash")
+        .arg(d.join("plan/jobs.txt"))
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
 #[test]
 fn jobs_txt_run_by_bash_bakes_what_the_flags_bake() {
     let dir = common::temp_dir();
@@ -49,16 +63,7 @@ fn jobs_txt_run_by_bash_bakes_what_the_flags_bake() {
             "{stem} not in job.yaml"
         );
     }
-    let run = std::process::Command::new("bash")
-        .arg(d.join("plan/jobs.txt"))
-        .current_dir(d)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    run_jobs(d);
     let planned = d.join("plan/bakes/tiny_solver.iterations-3_substeps-8");
     let direct = common::drape(
         d,
@@ -197,16 +202,7 @@ fn a_plan_in_chunks_run_chunk_after_chunk_bakes_the_whole_shot() {
         yaml.contains("- name: bake_03") && yaml.contains("dependsOn: bake_02"),
         "{yaml}"
     );
-    let run = std::process::Command::new("bash")
-        .arg(d.join("plan/jobs.txt"))
-        .current_dir(d)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    run_jobs(d);
     let planned = d.join("plan/bakes/tiny_solver.iterations-3");
     let direct = common::drape(
         d,
