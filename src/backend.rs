@@ -82,10 +82,19 @@ impl Backend {
     }
 
     /// Takes `sim`'s model and state afresh (after tearing changed the springs).
-    pub fn reload(&mut self, sim: &Simulation) -> Result<()> {
+    pub fn reload(&mut self, sim: &mut Simulation) -> Result<()> {
         match self {
             Backend::Cpu => Ok(()),
             Backend::Gpu(g) => g.reload(sim),
+        }
+    }
+
+    /// Brings into `sim` what only the backend kept and a checkpoint needs (the GPU's nearby
+    /// shell lists; nothing on the CPU).
+    pub fn sync_for_checkpoint(&mut self, sim: &mut Simulation) -> Result<()> {
+        match self {
+            Backend::Cpu => Ok(()),
+            Backend::Gpu(g) => g.read_nearby(sim),
         }
     }
 

@@ -105,6 +105,7 @@ pub fn run(
             c.frame(baked - 1, &positions)?;
             if c.due(baked) {
                 progress.measured = Measured::of(report);
+                backend.sync_for_checkpoint(sim)?;
                 c.write(frame, &sim.snapshot(), &progress, &sim.shells)?;
             }
             lap(&mut around, "checkpoint", writing);
@@ -127,6 +128,7 @@ pub fn run(
             let writing = Instant::now();
             progress.measured = Measured::of(report);
             let frame = report.frame_start + progress.baked - 1;
+            backend.sync_for_checkpoint(sim)?;
             c.write(frame, &sim.snapshot(), &progress, &sim.shells)?;
             lap(&mut around, "checkpoint", writing);
         }

@@ -377,6 +377,9 @@ pub struct ContactGroup {
     pub shells: Vec<GpuShellInfo>,
     pub shell_stride: u32,
     pub grid_stride: u32,
+    /// Each garment particle's nearby shell particles, per shell (`finish` writes them for the
+    /// next substep's collision passes); None without collision passes.
+    pub shell_nearby: Option<wgpu::Buffer>,
     pub group: wgpu::BindGroup,
 }
 
@@ -456,7 +459,13 @@ impl ContactGroup {
         let per_particle = if collisions.is_some() { n.max(1) } else { 1 };
         let attached_particles: Vec<u32> =
             sim.attachments.list.iter().map(|a| a.particle).collect();
-        let nearby = vec![u32::MAX; nearby_entries];
+        // The simulation's own lists when it has them (a resumed bake's checkpoint), else empty.
+        let nearby: Vec<u32> =
+            if sim.nearby_lists().len() * crate::collide::shell::NEARBY == nearby_entries {
+                bytemuck::cast_slice(sim.nearby_lists()).to_vec()
+            } else {
+                vec![u32::MAX; nearby_entries]
+            };
         let storage = [
             (
                 "pc_cell",
@@ -499,6 +508,11 @@ impl ContactGroup {
                 buffer("shell_nearby", bytemuck::cast_slice(&nearby), RW),
             ),
         ];
+        let shell_nearby = storage
+            .iter()
+            .find(|(name, _)| *name == "shell_nearby")
+            .filter(|_| listing)
+            .map(|(_, b)| b.clone());
         let mut named = vec![
             ("contacts", contacts.as_entire_binding()),
             ("attach_target", attach_target.as_entire_binding()),
@@ -516,6 +530,7 @@ impl ContactGroup {
             shells,
             shell_stride,
             grid_stride,
+            shell_nearby,
             group,
         }
     }

@@ -145,7 +145,9 @@ impl GpuSimulation {
 
     /// Uploads `sim`'s model and state again, after something changed them on the CPU (tearing
     /// rebuilds the model): the kernels are kept.
-    pub fn reload(&mut self, sim: &Simulation) -> Result<()> {
+    pub fn reload(&mut self, sim: &mut Simulation) -> Result<()> {
+        // The nearby lists carry over, as they do on the CPU.
+        self.read_nearby(sim)?;
         *self = GpuSimulation::with_kernels(self.ctx.clone(), self.kernels.clone(), sim)?;
         Ok(())
     }
@@ -271,6 +273,45 @@ impl GpuSimulation {
         if let Some(c) = &self.clock {
             c.read(&self.ctx, &mut sim.stage_times)?;
         }
+        Ok(())
+    }
+
+    /// Copies the GPU's nearby shell lists into `sim` (for a checkpoint: a bake resumed from
+    /// it starts its collision passes from the same lists).
+    pub fn read_nearby(&self, sim: &mut Simulation) -> Result<()> {
+        let Some(source) = &self.contact.shell_nearby else {
+            return Ok(());
+        };
+        let gpu = |e: String| Error::Gpu {
+            reason: format!("{}: {e}", self.ctx.adapter.name),
+        };
+        let size = source.size();
+        let readback = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("nearby readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        encoder.copy_buffer_to_buffer(source, 0, &readback, 0, size);
+        self.ctx.queue.submit([encoder.finish()]);
+        let slice = readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| gpu(e.to_string()))?;
+        let lists = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| gpu(format!("{e:?}")))?;
+            bytemuck::pod_collect_to_vec(&view)
+        };
+        readback.unmap();
+        sim.set_nearby_lists(lists);
         Ok(())
     }
 

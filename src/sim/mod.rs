@@ -316,6 +316,17 @@ impl Simulation {
         self.solver = Solver::new(&self.model, settings, self.verlet.map(|v| v.step));
     }
 
+    /// Each garment particle's nearby shell particles, per shell, as the last substep left them
+    /// (empty before the first, or with one collision pass).
+    pub fn nearby_lists(&self) -> &[crate::collide::shell::Nearby] {
+        &self.nearby
+    }
+
+    /// Takes lists another backend kept (the GPU's, for a checkpoint).
+    pub fn set_nearby_lists(&mut self, lists: Vec<crate::collide::shell::Nearby>) {
+        self.nearby = lists;
+    }
+
     /// True when the scene has force fields (wind, attractors).
     pub fn has_forces(&self) -> bool {
         self.forces.is_some()
