@@ -323,6 +323,13 @@ fn seeds() -> Vec<(String, PathBuf)> {
         scenes.clone(),
     ));
     out.push((
+        r#"{ "frames": 3, "checkpoint_every": 1, "accuracy": { "max_strain": 0.2, "max_penetration": 0.01 },
+             "forces": [{ "kind": "attractor", "position": [0, 0.5, 0], "strength": 2, "radius": 1 }],
+             "garments": [{ "resolution": [8, 8], "pins": [[0, 0]] }] }"#
+            .into(),
+        scenes.clone(),
+    ));
+    out.push((
         r#"{ "frames": 2, "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.2 }],
              "garments": [{ "resolution": [8, 8], "attachments": [{ "particles": "corners",
              "keyframes": [{ "time": 0 }, { "time": 1, "translation": [0, 1, 0] }] }] }] }"#
