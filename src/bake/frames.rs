@@ -20,6 +20,8 @@ use std::time::Instant;
 /// per-frame fields and stops at the first unstable frame (recorded in `report.failure`) or
 /// after the frame a signal arrived in. Returns the time of the stages around the simulation's
 /// own (tearing, metrics, export, checkpoints).
+// Long: a frame's steps in order (step within the budget, tear, measure, hash and export, log
+// and checkpoint, stop on a signal or `--until`), each a few lines.
 pub fn run(
     sim: &mut Simulation,
     backend: &mut Backend,
@@ -133,6 +135,18 @@ pub fn run(
             lap(&mut around, "checkpoint", writing);
         }
     }
+    sum_up(sim, backend, targets, progress, report);
+    Ok(around)
+}
+
+/// The report's fields over the whole bake, from the frame loop's running measures.
+fn sum_up(
+    sim: &Simulation,
+    backend: &Backend,
+    targets: Option<&Targets>,
+    progress: Progress,
+    report: &mut Report,
+) {
     report.ms_per_frame = Timing::of(&progress.frame_ms);
     if backend.is_gpu() {
         report.gpu_upload_bytes_per_frame =
@@ -148,7 +162,6 @@ pub fn run(
     if sim.residuals.is_some() {
         report.residuals = Some(progress.residuals);
     }
-    Ok(around)
 }
 
 /// Where each frame goes: the meshes that show it, the exports and the checkpoints.

@@ -251,19 +251,7 @@ fn run(
                 reason: format!("does not fit the scene: {reason}"),
             })?;
     }
-    let kind = match (&targets, scene.backend) {
-        (None, kind) | (_, kind @ crate::scene::BackendKind::Cpu) => kind,
-        (Some(_), crate::scene::BackendKind::Gpu) => {
-            return Err(Error::InvalidArgument {
-                flag: "backend".into(),
-                reason: "gpu: accuracy targets re-simulate frames on the CPU backend only; use `cpu` or `auto`".into(),
-            })
-        }
-        (Some(_), crate::scene::BackendKind::Auto) => {
-            warnings.push("backend auto: accuracy targets choose the budget on the CPU backend only; simulating on the CPU".into());
-            crate::scene::BackendKind::Cpu
-        }
-    };
+    let kind = backend_kind(scene, targets.is_some(), &mut warnings)?;
     let mut backend = Backend::for_scene(kind, &sim, &mut warnings)?;
     let vertices = meshes.info.iter().map(|m| m.vertices as u64).sum();
     check_disk(scene, vertices, &options.scene_file, &options.out)?;
@@ -281,15 +269,15 @@ fn run(
     };
     let mut progress = checkpoint::Progress::default();
     if let Some(s) = source {
-        let into = dir.join(checkpoint::FOLDER);
         let replaying = Instant::now();
+        let out = dir.join(checkpoint::FOLDER);
         resume::replay(
             &s,
             &mut meshes,
             &mut exports,
             writer.as_mut(),
             scene.frame_start,
-            &into,
+            &out,
         )?;
         if s.loaded.meta.backend != if backend.is_gpu() { "gpu" } else { "cpu" } {
             warnings.push(format!(
@@ -306,16 +294,9 @@ fn run(
     }
     report.warnings = warnings;
     report.characters = characters;
-    if let Some(info) = backend.adapter_info() {
+    if let Some(adapter) = adapter_report(&backend) {
         report.backend.kind = "gpu";
-        report.backend.adapter = Some(Adapter {
-            name: info.name.clone(),
-            device_type: format!("{:?}", info.device_type),
-            driver: format!("{} {}", info.driver, info.driver_info)
-                .trim()
-                .to_string(),
-            backend: format!("{:?}", info.backend),
-        });
+        report.backend.adapter = Some(adapter);
     }
     let bar = progress_bar(scene.frames as u64, options.progress);
     let mut around = frames::run(
@@ -341,6 +322,39 @@ fn run(
     stage_times.add(&around);
     report.stages_ms = StageTiming::of(&stage_times, report.frames_baked);
     Ok((report, sim.export_positions()))
+}
+
+/// Where a scene runs: its `backend`, except that accuracy targets (which simulate frames
+/// again on the CPU) refuse `gpu` and make `auto` the CPU, with a warning.
+fn backend_kind(
+    scene: &Scene,
+    targets: bool,
+    warnings: &mut Vec<String>,
+) -> Result<crate::scene::BackendKind> {
+    use crate::scene::BackendKind;
+    match (targets, scene.backend) {
+        (false, kind) | (true, kind @ BackendKind::Cpu) => Ok(kind),
+        (true, BackendKind::Gpu) => Err(Error::InvalidArgument {
+            flag: "backend".into(),
+            reason: "gpu: accuracy targets re-simulate frames on the CPU backend only; use `cpu` or `auto`".into(),
+        }),
+        (true, BackendKind::Auto) => {
+            warnings.push("backend auto: accuracy targets choose the budget on the CPU backend only; simulating on the CPU".into());
+            Ok(BackendKind::Cpu)
+        }
+    }
+}
+
+/// What the report says of the GPU adapter a bake runs on (None on the CPU).
+fn adapter_report(backend: &Backend) -> Option<Adapter> {
+    backend.adapter_info().map(|info| Adapter {
+        name: info.name.clone(),
+        device_type: format!("{:?}", info.device_type),
+        driver: format!("{} {}", info.driver, info.driver_info)
+            .trim()
+            .to_string(),
+        backend: format!("{:?}", info.backend),
+    })
 }
 
 /// The checkpoint to resume from, when the options ask for one (a warning when there is none).

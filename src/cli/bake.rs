@@ -31,6 +31,55 @@ fn stop_on_signals() {
     }
 }
 
+/// What the bake did, for the terminal: warnings on stderr, frames, exports, preview and the
+/// last frame's accuracy on stdout.
+fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
+    for w in &r.warnings {
+        eprintln!("drape: warning: {w}");
+    }
+    let on = match &r.backend.adapter {
+        Some(a) => format!("GPU {} ({})", a.name, a.device_type),
+        None => format!("CPU, {} threads", r.backend.threads),
+    };
+    println!(
+        "baked {} of {} frames of '{}' into {}: {} particles, {:.2} ms per frame (median, {on})",
+        r.frames_baked,
+        r.frames_requested,
+        r.scene,
+        out.display(),
+        r.particles,
+        r.ms_per_frame.median,
+    );
+    for e in &r.exports {
+        println!(
+            "wrote {}: {} files, {:.1} MB in {:.0} ms",
+            e.format,
+            e.files,
+            e.bytes as f64 / 1e6,
+            e.ms
+        );
+    }
+    if let Some(p) = &r.preview {
+        println!(
+            "rendered {} preview frames at {}×{} on {}: {:.0} ms per frame; contact sheet {}",
+            p.frames,
+            p.width,
+            p.height,
+            p.adapter,
+            p.ms_per_frame,
+            out.join(&p.contact_sheet).display()
+        );
+    }
+    if let Some(last) = &r.last_frame {
+        println!(
+            "last frame: mean strain {:.3} %, max strain {:.3} %, total squared error {:.3e} m²",
+            last.mean_strain * 100.0,
+            last.max_strain * 100.0,
+            last.total_squared_error
+        );
+    }
+}
+
 /// The command that resumes a bake of `scene` into `out`.
 fn resume_command(scene: &Option<PathBuf>, out: &std::path::Path) -> String {
     let quote = |p: &std::path::Path| {
@@ -51,8 +100,6 @@ fn resume_command(scene: &Option<PathBuf>, out: &std::path::Path) -> String {
     )
 }
 
-// Long: the command in order (scene, flags folded in, bake, the summary it prints), each step a
-// few lines.
 pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     let (mut scene, scene_file) = resolve::scene(&args.scene)?;
     let scene_arg = args.scene.scene.clone();
@@ -100,50 +147,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     stop_on_signals();
     let result = bake(&scene, &options)?;
     let r = &result.report;
-    for w in &r.warnings {
-        eprintln!("drape: warning: {w}");
-    }
-    let on = match &r.backend.adapter {
-        Some(a) => format!("GPU {} ({})", a.name, a.device_type),
-        None => format!("CPU, {} threads", r.backend.threads),
-    };
-    println!(
-        "baked {} of {} frames of '{}' into {}: {} particles, {:.2} ms per frame (median, {on})",
-        r.frames_baked,
-        r.frames_requested,
-        r.scene,
-        result.out.display(),
-        r.particles,
-        r.ms_per_frame.median,
-    );
-    for e in &r.exports {
-        println!(
-            "wrote {}: {} files, {:.1} MB in {:.0} ms",
-            e.format,
-            e.files,
-            e.bytes as f64 / 1e6,
-            e.ms
-        );
-    }
-    if let Some(p) = &r.preview {
-        println!(
-            "rendered {} preview frames at {}×{} on {}: {:.0} ms per frame; contact sheet {}",
-            p.frames,
-            p.width,
-            p.height,
-            p.adapter,
-            p.ms_per_frame,
-            result.out.join(&p.contact_sheet).display()
-        );
-    }
-    if let Some(last) = &r.last_frame {
-        println!(
-            "last frame: mean strain {:.3} %, max strain {:.3} %, total squared error {:.3e} m²",
-            last.mean_strain * 100.0,
-            last.max_strain * 100.0,
-            last.total_squared_error
-        );
-    }
+    print_summary(r, &result.out);
     if let Some(i) = &r.interrupted {
         let name = match i.signal {
             2 => "SIGINT",
