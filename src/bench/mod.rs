@@ -2,6 +2,7 @@
 //! rotting. Times are wall clock on whatever machine runs them: they are printed and written to
 //! CSV, never asserted.
 
+pub mod budget;
 pub mod chart;
 pub mod convergence;
 pub mod integrator_report;

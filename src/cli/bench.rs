@@ -12,6 +12,7 @@ use std::fmt::Write as _;
 pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
     match args.what {
         BenchWhat::Sizes => return sizes(&args),
+        BenchWhat::Budget => return budget(&args),
         BenchWhat::Convergence | BenchWhat::Integrators | BenchWhat::Docs => return studies(&args),
         BenchWhat::Solvers => {}
     }
@@ -52,11 +53,12 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             );
         }
     }
+    let frames = args.frames.unwrap_or(120);
     for scene in [&h, &s] {
         println!(
             "scene {} ({} frames, {} substeps x {} iterations):",
             scene.name,
-            args.frames,
+            frames,
             scene.substeps_per_frame(),
             scene.solver.iterations
         );
@@ -73,7 +75,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
         );
         for &t in &threads {
             for kind in SOLVERS {
-                let r = time_frames(scene, kind, t, args.frames)?;
+                let r = time_frames(scene, kind, t, frames)?;
                 println!(
                     "  {:<8} {:>7} {:>10.2} {:>11.3}% {:>11.2}% {:>8} {:>8.1}mm {:>7}",
                     r.solver,
@@ -176,5 +178,26 @@ fn studies(args: &BenchArgs) -> anyhow::Result<i32> {
             println!("wrote {}", page.display());
         }
     }
+    Ok(0)
+}
+
+/// `drape bench budget`: the comparison's CSV and SVG into `OUT/bench` and its table into
+/// `OUT/accuracy-vs-speed.md` (OUT: `docs`).
+fn budget(args: &BenchArgs) -> anyhow::Result<i32> {
+    let out = args.out.clone().unwrap_or_else(|| "docs".into());
+    let mut log = |line: &str| println!("{line}");
+    let table = drape::bench::budget::run(
+        std::path::Path::new("."),
+        &out.join("bench"),
+        args.frames,
+        &mut log,
+    )?;
+    let page = out.join("accuracy-vs-speed.md");
+    drape::bench::studies::set_budget_section(&page, &table)?;
+    println!(
+        "wrote {}/bench/budget.csv, budget.svg and the table in {}",
+        out.display(),
+        page.display()
+    );
     Ok(0)
 }

@@ -1,0 +1,204 @@
+//! `drape bench budget`: scenes baked as shipped (hand-tuned substeps and iterations) against the
+//! same scenes with accuracy targets choosing the budget (`bake::budget`): ms per frame, worst
+//! strain and deepest penetration side by side, as a table, a CSV and a chart of strain against
+//! time (the axes of the other speed-against-accuracy charts). The table goes into
+//! `docs/accuracy-vs-speed.md` between markers that `drape bench docs` keeps.
+
+use super::chart::{write_atomically, Chart, Series, Style};
+use crate::bake::{bake, BakeOptions, Resume};
+use crate::error::{Error, Result};
+use crate::scene::{AccuracySpec, BackendKind, GltfOutput, Scene};
+use std::path::Path;
+
+/// Where the table sits in `accuracy-vs-speed.md`.
+pub const BEGIN: &str = "<!-- drape bench budget -->";
+pub const END: &str = "<!-- /drape bench budget -->";
+
+/// One bake of the comparison.
+struct Case {
+    scene: String,
+    setting: String,
+    ms_per_frame: f64,
+    max_strain: f64,
+    deepest: f32,
+    met: Option<bool>,
+}
+
+/// The scenes compared: a label and the scene.
+fn scenes(root: &Path, cache: &Path) -> Result<Vec<(String, Scene)>> {
+    let load = |f: &str| Scene::load(&root.join("scenes").join(f));
+    Ok(vec![
+        ("H".into(), load("hanging_cloth.json")?),
+        ("P".into(), Scene::default_scene(cache)?),
+        ("curtain".into(), load("curtain.json")?),
+        ("flag".into(), load("flag.json")?),
+    ])
+}
+
+/// The settings each scene is baked with: as shipped, then targets with the scene's own
+/// substeps and iterations left to the budget.
+fn settings(label: &str) -> Vec<(String, Option<AccuracySpec>)> {
+    let target = |strain: f32, depth: Option<f32>| AccuracySpec {
+        max_strain: Some(strain),
+        max_penetration: depth,
+    };
+    let mut v = vec![
+        ("as shipped".to_string(), None),
+        ("max_strain 10 %".into(), Some(target(0.10, None))),
+        ("max_strain 5 %".into(), Some(target(0.05, None))),
+    ];
+    if label == "P" {
+        // Half the shell's radius (1 cm).
+        v.push(("5 % and 5 mm".into(), Some(target(0.05, Some(0.005)))));
+    }
+    v
+}
+
+/// Bakes every scene and setting for `frames` frames (None: each scene's own), writes
+/// `out/budget.csv` and `out/budget.svg`, and returns the Markdown section.
+pub fn run(
+    root: &Path,
+    out: &Path,
+    frames: Option<u32>,
+    log: &mut dyn FnMut(&str),
+) -> Result<String> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, "cannot create", e))?;
+    let work = out.join(format!(".budget-{}", std::process::id()));
+    let result = (|| {
+        let mut cases = Vec::new();
+        for (label, scene) in scenes(root, &work.join("mannequin"))? {
+            for (setting, accuracy) in settings(&label) {
+                let case = bake_case(&label, &scene, &setting, accuracy, frames, &work)?;
+                log(&format!(
+                    "{label} {setting}: {:.2} ms/frame, worst strain {:.2} %, deepest {:.2} mm",
+                    case.ms_per_frame,
+                    case.max_strain * 100.0,
+                    case.deepest * 1e3
+                ));
+                cases.push(case);
+            }
+        }
+        Ok(cases)
+    })();
+    let _ = std::fs::remove_dir_all(&work);
+    let cases = result?;
+    let mut csv = String::from("scene,setting,ms_per_frame,max_strain,deepest_penetration_m,met\n");
+    for c in &cases {
+        csv.push_str(&format!(
+            "{},{},{:.4},{:.6},{:.6},{}\n",
+            c.scene,
+            c.setting,
+            c.ms_per_frame,
+            c.max_strain,
+            c.deepest,
+            c.met.map_or("".into(), |m| m.to_string())
+        ));
+    }
+    write_atomically(&out.join("budget.csv"), csv.as_bytes())?;
+    chart(&cases).write_svg(&out.join("budget.svg"))?;
+    Ok(table(&cases))
+}
+
+/// One bake of `scene` with `accuracy` (None: as shipped) on the CPU, no files but the report.
+fn bake_case(
+    label: &str,
+    scene: &Scene,
+    setting: &str,
+    accuracy: Option<AccuracySpec>,
+    frames: Option<u32>,
+    work: &Path,
+) -> Result<Case> {
+    let mut s = scene.clone();
+    s.backend = BackendKind::Cpu;
+    s.frames = frames.unwrap_or(s.frames);
+    s.output.obj = false;
+    s.output.gltf = GltfOutput::None;
+    s.output.preview = false;
+    s.checkpoint_every = Some(0);
+    if accuracy.is_some() {
+        s.substeps = None;
+        s.timestep = None;
+        s.iterations_given = false;
+    }
+    s.accuracy = accuracy;
+    let options = BakeOptions {
+        out: work.join("bake"),
+        scene_file: format!("{label} ({setting})"),
+        threads: None,
+        progress: false,
+        shell_cache: Some(work.join("cache")),
+        resume: Resume::No,
+        until: None,
+    };
+    let r = bake(&s, &options)?.report;
+    let deepest = r
+        .worst_penetrations
+        .iter()
+        .map(|p| p.penetration.deepest)
+        .chain(
+            r.worst_mesh_penetrations
+                .iter()
+                .map(|m| m.penetration.deepest),
+        )
+        .fold(0.0f32, f32::max);
+    Ok(Case {
+        scene: label.to_string(),
+        setting: setting.to_string(),
+        ms_per_frame: r.ms_per_frame.mean,
+        max_strain: r.worst_frame.as_ref().map_or(0.0, |w| w.max_strain),
+        deepest,
+        met: r.budget.as_ref().map(|b| b.met),
+    })
+}
+
+fn table(cases: &[Case]) -> String {
+    let mut md = String::from(
+        "| scene | setting | ms per frame (mean) | worst strain | deepest penetration | targets met |\n|---|---|---|---|---|---|\n",
+    );
+    for c in cases {
+        md.push_str(&format!(
+            "| {} | {} | {:.2} | {:.2} % | {:.2} mm | {} |\n",
+            c.scene,
+            c.setting,
+            c.ms_per_frame,
+            c.max_strain * 100.0,
+            c.deepest * 1e3,
+            c.met.map_or("—", |m| if m { "yes" } else { "**no**" })
+        ));
+    }
+    md
+}
+
+/// Worst strain against ms per frame, a series per scene, each point named by its setting.
+fn chart(cases: &[Case]) -> Chart {
+    let mut series: Vec<Series> = Vec::new();
+    for c in cases {
+        let point = (c.ms_per_frame, (c.max_strain * 100.0).max(1e-3));
+        match series.iter_mut().find(|s| s.name == c.scene) {
+            Some(s) => s.points.push(point),
+            None => {
+                let colour = series.len();
+                series.push(Series::new(
+                    c.scene.clone(),
+                    vec![point],
+                    Style::Points,
+                    colour,
+                ));
+            }
+        }
+        let s = series
+            .iter_mut()
+            .find(|s| s.name == c.scene)
+            .expect("just added");
+        s.notes.push((point.0, point.1, c.setting.clone()));
+    }
+    Chart {
+        title: "Accuracy targets against the shipped settings".into(),
+        x_label: "ms per frame (CPU)".into(),
+        y_label: "worst strain [%]".into(),
+        x_log: true,
+        y_log: true,
+        series,
+        ..Chart::default()
+    }
+}
