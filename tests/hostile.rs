@@ -800,7 +800,7 @@ fn an_interrupted_bake_keeps_its_frames_and_says_so() {
         let d = dir.path();
         std::fs::write(
             d.join("scene.json"),
-            r#"{ "frames": 100000, "backend": "cpu", "output": { "gltf": "none" },
+            r#"{ "frames": 20000, "backend": "cpu", "output": { "gltf": "none" },
                  "garments": [{ "name": "cloth", "resolution": [40, 40], "pins": [[0, 0], [-1, 0]] }] }"#,
         )
         .unwrap();
@@ -834,7 +834,7 @@ fn an_interrupted_bake_keeps_its_frames_and_says_so() {
             serde_json::from_str(&std::fs::read_to_string(d.join("out/report.json")).unwrap())
                 .unwrap();
         let baked = report["frames_baked"].as_u64().unwrap();
-        assert!((3..100000).contains(&baked), "{baked}");
+        assert!((3..20000).contains(&baked), "{baked}");
         assert_eq!(report["interrupted"]["signal"], signal);
         assert_eq!(report["interrupted"]["after_frame"], baked);
         assert_eq!(report["stable"], true);
