@@ -77,7 +77,7 @@ pub struct Meta {
     pub drape_version: String,
     /// FNV-1a of the scene's canonical text ([`canonical_scene`]).
     pub scene_hash: String,
-    /// FNV-1a of the characters' shell frames up to this checkpoint ([`characters_hash`]).
+    /// FNV-1a of the characters' shell frames up to this checkpoint ([`characters_hashes`]).
     pub characters_hash: String,
     /// `cpu` or `gpu`.
     pub backend: String,
@@ -135,18 +135,34 @@ pub fn scene_identity(scene: &Scene) -> (String, String) {
     (text, hash)
 }
 
-/// FNV-1a of the characters' shells (names, radii and positions) over the frames a state after
-/// `baked` frames depends on: 0 (the start) to `baked`.
-pub fn characters_hash(shells: &[crate::collide::ShellCollider], baked: u32) -> String {
+/// FNV-1a of the characters' shells (names and radii, then every shell's positions frame by
+/// frame) through each frame: entry k covers frames 0 (the start) to k, what a state after k
+/// baked frames depends on. Computed once per bake; a checkpoint looks its frame up.
+pub fn characters_hashes(shells: &[crate::collide::ShellCollider]) -> Vec<String> {
     let mut h = FNV_OFFSET;
     for s in shells {
         h = fnv(h, s.name.as_bytes());
         h = fnv(h, &s.radius.to_le_bytes());
-        for frame in s.frames.iter().take(baked as usize + 1) {
-            h = fnv(h, bytemuck::cast_slice(frame));
-        }
     }
-    format!("{h:016x}")
+    let frames = shells
+        .iter()
+        .map(|s| s.frames.len())
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    (0..frames)
+        .map(|k| {
+            for frame in shells.iter().filter_map(|s| s.frames.get(k)) {
+                h = fnv(h, bytemuck::cast_slice(frame));
+            }
+            format!("{h:016x}")
+        })
+        .collect()
+}
+
+/// Entry `baked` of [`characters_hashes`] (the last one past the characters' frames).
+pub fn characters_hash(hashes: &[String], baked: u32) -> &str {
+    &hashes[(baked as usize).min(hashes.len() - 1)]
 }
 
 /// The checkpoint file of shot frame `frame`.
@@ -179,6 +195,8 @@ pub struct Writer {
     last: Instant,
     /// The scene's hash and the backend.
     identity: (String, String),
+    /// [`characters_hashes`] of the bake's shells.
+    characters: Vec<String>,
     /// Checkpoints written: (frame, bytes, milliseconds).
     pub written: Vec<(u32, u64, f64)>,
 }
@@ -190,6 +208,7 @@ impl Writer {
         scene: &Scene,
         backend: &str,
         vertices: usize,
+        shells: &[crate::collide::ShellCollider],
     ) -> Result<Writer> {
         std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, "cannot create", e))?;
         let (text, scene_hash) = scene_identity(scene);
@@ -202,6 +221,7 @@ impl Writer {
             every: scene.checkpoint_every,
             last: Instant::now(),
             identity: (scene_hash, backend.into()),
+            characters: characters_hashes(shells),
             written: Vec::new(),
         })
     }
@@ -234,15 +254,8 @@ impl Writer {
         }
     }
 
-    /// Writes the checkpoint after shot frame `frame` (unless it is written already), with the
-    /// `shells` the simulation collides with.
-    pub fn write(
-        &mut self,
-        frame: u32,
-        snapshot: &Snapshot,
-        progress: &Progress,
-        shells: &[crate::collide::ShellCollider],
-    ) -> Result<()> {
+    /// Writes the checkpoint after shot frame `frame` (unless it is written already).
+    pub fn write(&mut self, frame: u32, snapshot: &Snapshot, progress: &Progress) -> Result<()> {
         if self.written.last().is_some_and(|w| w.0 == frame) {
             return Ok(());
         }
@@ -251,7 +264,7 @@ impl Writer {
         let meta = Meta {
             drape_version: env!("CARGO_PKG_VERSION").into(),
             scene_hash: self.identity.0.clone(),
-            characters_hash: characters_hash(shells, progress.baked),
+            characters_hash: characters_hash(&self.characters, progress.baked).to_string(),
             backend: self.identity.1.clone(),
             frame,
             frames_bytes,

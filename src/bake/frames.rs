@@ -108,7 +108,7 @@ pub fn run(
             if c.due(baked) {
                 progress.measured = Measured::of(report);
                 backend.sync_for_checkpoint(sim)?;
-                c.write(frame, &sim.snapshot(), &progress, &sim.shells)?;
+                c.write(frame, &sim.snapshot(), &progress)?;
             }
             lap(&mut around, "checkpoint", writing);
         }
@@ -131,7 +131,7 @@ pub fn run(
             progress.measured = Measured::of(report);
             let frame = report.frame_start + progress.baked - 1;
             backend.sync_for_checkpoint(sim)?;
-            c.write(frame, &sim.snapshot(), &progress, &sim.shells)?;
+            c.write(frame, &sim.snapshot(), &progress)?;
             lap(&mut around, "checkpoint", writing);
         }
     }
@@ -195,9 +195,10 @@ impl Measured {
     }
 }
 
-/// Steps frame `frame` (baked frame `index`) within the accuracy `targets`: simulated again from its start state at
-/// the next budget while it misses one (up to the ladder's cap), then one budget lower for the
-/// next frame after a calm stretch. Records the frame's budget in `progress`.
+/// Steps frame `frame` (baked frame `index`) within the accuracy `targets`: simulated again
+/// from its start state at the next budget while it misses one (up to the ladder's cap); the
+/// next frame's budget one higher when this one came close, one lower after a calm stretch.
+/// Records the frame's budget in `progress`.
 fn step_within(
     t: &Targets,
     sim: &mut Simulation,
@@ -263,26 +264,44 @@ fn step_within(
 /// The worst structural strain of `sim` now and the deepest any free particle is inside a
 /// collider, a shell or a character's mesh (at baked frame `index`) [m].
 fn accuracy_of(sim: &Simulation, meshes: &BakeMeshes, index: usize) -> (f64, f32) {
-    let strain = sim.constraint_error().max_strain;
     let free = sim.free_positions();
-    let mut deepest = collide::penetrations(&sim.colliders, &free)
-        .iter()
+    let deepest = solid_penetrations(sim, &free)
+        .into_iter()
         .chain(
-            sim.shells
-                .iter()
-                .map(|s| s.penetration(&free))
-                .collect::<Vec<_>>()
-                .iter(),
+            mesh_penetrations(&free, meshes, index)
+                .into_iter()
+                .map(|(_, p)| p),
         )
         .map(|p| p.deepest)
         .fold(0.0f32, f32::max);
-    let points: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
-    for (_, vertices, triangles) in meshes.characters_at(index) {
-        let normals = crate::export::obj::vertex_normals(triangles, vertices);
-        let p = collide::mesh::penetration(vertices, triangles, &normals, &points);
-        deepest = deepest.max(p.deepest);
+    (sim.constraint_error().max_strain, deepest)
+}
+
+/// The `free` particles inside each collider, then inside each character's shell.
+fn solid_penetrations(sim: &Simulation, free: &[glam::Vec4]) -> Vec<collide::Penetration> {
+    let mut penetrations = collide::penetrations(&sim.colliders, free);
+    penetrations.extend(sim.shells.iter().map(|s| s.penetration(free)));
+    penetrations
+}
+
+/// The `free` particles inside each character's own mesh at baked frame `index`, by name.
+fn mesh_penetrations<'m>(
+    free: &[glam::Vec4],
+    meshes: &'m BakeMeshes,
+    index: usize,
+) -> Vec<(&'m str, collide::Penetration)> {
+    let mut characters = meshes.characters_at(index).peekable();
+    if characters.peek().is_none() {
+        return Vec::new();
     }
-    (strain, deepest)
+    let free: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
+    characters
+        .map(|(name, vertices, triangles)| {
+            let normals = crate::export::obj::vertex_normals(triangles, vertices);
+            let p = collide::mesh::penetration(vertices, triangles, &normals, &free);
+            (name, p)
+        })
+        .collect()
 }
 
 /// Measures how many of the `free` garment particles lie inside each character's own mesh at
@@ -294,19 +313,16 @@ fn measure_meshes(
     frame: u32,
     report: &mut Report,
 ) {
-    let mut characters = meshes.characters_at(index).peekable();
-    if characters.peek().is_none() {
+    let found = mesh_penetrations(free, meshes, index);
+    if found.is_empty() {
         return;
     }
-    let free: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
     let mut this = FramePenetrations {
         frame,
         inside: Vec::new(),
         deepest_m: Vec::new(),
     };
-    for (c, (name, vertices, triangles)) in characters.enumerate() {
-        let normals = crate::export::obj::vertex_normals(triangles, vertices);
-        let p = collide::mesh::penetration(vertices, triangles, &normals, &free);
+    for (c, (name, p)) in found.into_iter().enumerate() {
         this.inside.push(p.inside);
         this.deepest_m.push(p.deepest);
         if report.worst_mesh_penetrations.len() <= c {
@@ -332,8 +348,7 @@ fn measure(
     report: &mut Report,
 ) -> Option<String> {
     let error = sim.constraint_error();
-    let mut penetrations = collide::penetrations(&sim.colliders, free);
-    penetrations.extend(sim.shells.iter().map(|s| s.penetration(free)));
+    let penetrations = solid_penetrations(sim, free);
     report.penetrations_per_frame.push(FramePenetrations {
         frame,
         inside: penetrations.iter().map(|p| p.inside).collect(),

@@ -265,6 +265,7 @@ fn run(
             scene,
             if backend.is_gpu() { "gpu" } else { "cpu" },
             meshes.garment_particles(),
+            &sim.shells,
         )?),
     };
     let mut progress = checkpoint::Progress::default();
@@ -372,7 +373,7 @@ fn resumed_source(
         scene,
         file: &options.scene_file,
         scene_hash: checkpoint::scene_identity(scene).1,
-        shells,
+        characters: checkpoint::characters_hashes(shells),
     };
     let found = resume::find(folders, options.resume, &id, warnings)?;
     if found.is_none() {

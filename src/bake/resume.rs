@@ -41,8 +41,9 @@ pub struct Identity<'a> {
     /// Names the scene in errors.
     pub file: &'a str,
     pub scene_hash: String,
-    /// The characters' shells (checked over the frames up to a checkpoint).
-    pub shells: &'a [crate::collide::ShellCollider],
+    /// [`checkpoint::characters_hashes`] of the scene's shells (checked through a checkpoint's
+    /// frame).
+    pub characters: Vec<String>,
 }
 
 /// Finds the checkpoint to resume from in `folders` (bake folders); `None` when none of them
@@ -141,7 +142,7 @@ fn check(
             meta.frame
         ));
     }
-    if meta.characters_hash != checkpoint::characters_hash(id.shells, meta.progress.baked) {
+    if meta.characters_hash != checkpoint::characters_hash(&id.characters, meta.progress.baked) {
         let what = format!(
             "the characters' animation differs from the one the checkpoints in {} were made with",
             dir.display()
