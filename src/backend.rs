@@ -32,26 +32,9 @@ impl Backend {
         sim: &Simulation,
         warnings: &mut Vec<String>,
     ) -> Result<Backend> {
-        // Force fields are simulated on the CPU only so far.
-        let unsupported = sim.has_forces().then_some(
-            "the scene's `forces` (wind, attractors) are simulated on the CPU backend only",
-        );
         match kind {
             BackendKind::Cpu => Ok(Backend::Cpu),
-            BackendKind::Gpu => match unsupported {
-                Some(why) => Err(crate::Error::InvalidArgument {
-                    flag: "backend".into(),
-                    reason: format!("gpu: {why}; use `cpu` or `auto`"),
-                }),
-                None => Backend::gpu(GpuContext::new(false)?, sim),
-            },
-            BackendKind::Auto if unsupported.is_some() => {
-                warnings.push(format!(
-                    "backend auto: {}; simulating on the CPU",
-                    unsupported.unwrap_or_default()
-                ));
-                Ok(Backend::Cpu)
-            }
+            BackendKind::Gpu => Backend::gpu(GpuContext::new(false)?, sim),
             BackendKind::Auto => {
                 if !crate::gpu::context::hardware_present() {
                     warnings.push(

@@ -318,6 +318,102 @@ fn the_gpu_follows_a_character_whose_topology_changes() {
     );
 }
 
+#[test]
+fn the_gpu_places_a_moving_characters_shell_from_its_vertices() {
+    // The mannequin raising its arms (868 vertices, about 15 000 shell particles): the GPU
+    // places the shell itself from each frame's vertices. Every frame uploads at most one
+    // character frame (vertices and normals) and a few words per substep; the last substep's
+    // shell particles sit where the CPU puts them; its grid lists every particle once, in the
+    // bucket of its own cell, each bucket in ascending order; and the cloth landing on the
+    // shoulders follows the CPU's.
+    let Some(ctx) = common::gpu_context() else {
+        return;
+    };
+    let dir = common::temp_dir();
+    let text = scene_text(
+        r#"{ "name": "cloth", "resolution": [12, 12], "size": [0.3, 0.3], "position": [0.25, 1.58, 0] }"#,
+        "characters/mannequin/raise_arms",
+        10,
+    );
+    let scene = common::scene(&text);
+    let (mut cpu, mut on_gpu, mut gpu) = on_both_backends(&scene, dir.path(), ctx);
+    let vertices = on_gpu.shells[0]
+        .skin
+        .as_ref()
+        .expect("bound")
+        .vertex_count() as u64;
+    let (mut gap, mut worst) = (0.0f32, [0.0f32; 3]);
+    for frame in 0..scene.frames {
+        cpu.step_frame();
+        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        let uploaded = gpu.uploaded_last_frame();
+        // Two character frames with the first frame (the window starts empty), one after.
+        let frames = if frame == 0 { 2 } else { 1 };
+        let most = frames * vertices * 32 + 32 * cpu.substeps as u64 + 2_000;
+        assert!(uploaded <= most, "frame {frame} uploaded {uploaded} bytes");
+        let (want, _) = cpu.shells[0].gpu_snapshot();
+        let (got, grid) = gpu.read_shell(cpu.substeps - 1, 0).expect("read back");
+        assert_eq!(got.len(), want.len());
+        for (w, g) in want.iter().zip(&got) {
+            for k in 0..3 {
+                worst[k] = worst[k].max((w[k] - g[k]).length());
+            }
+        }
+        assert_lists_each_particle_once(
+            &grid,
+            &got,
+            on_gpu.shells[0].cell_for(on_gpu.largest_contact_radius()),
+        );
+        gap = gap.max(common::largest_gap(&cpu, &on_gpu));
+    }
+    eprintln!(
+        "GPU-placed shell against the CPU's: positions {:.1e} m, motion {:.1e} m, normals {:.1e}; cloth {gap:.1e} m",
+        worst[0], worst[1], worst[2]
+    );
+    assert!(worst[0] <= 1e-6 && worst[1] <= 1e-6, "{worst:?}");
+    assert!(worst[2] <= 1e-5, "normals differ by {}", worst[2]);
+    assert!(gap <= 1e-4, "CPU and GPU cloth differ by {gap} m");
+    let lowest = on_gpu
+        .export_positions()
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MAX, f32::min);
+    assert!(
+        lowest > 1.0,
+        "the cloth fell past the shoulders to {lowest} m"
+    );
+}
+
+/// A shell grid as the GPU reads it (bucket starts, then items) lists every particle once, in
+/// the bucket of its own cell, each bucket in ascending order.
+fn assert_lists_each_particle_once(grid: &[u32], particles: &[[glam::Vec4; 3]], cell: f32) {
+    let table = grid.len() - particles.len() - 1;
+    let (start, items) = grid.split_at(table + 1);
+    let mut seen = vec![0; particles.len()];
+    for b in 0..table {
+        let bucket = &items[start[b] as usize..start[b + 1] as usize];
+        assert!(
+            bucket.windows(2).all(|w| w[0] < w[1]),
+            "bucket {b}: {bucket:?}"
+        );
+        for &i in bucket {
+            let c = (particles[i as usize][0].truncate() / cell)
+                .floor()
+                .as_ivec3();
+            let h = c.x.wrapping_mul(73_856_093)
+                ^ c.y.wrapping_mul(19_349_663)
+                ^ c.z.wrapping_mul(83_492_791);
+            assert_eq!(
+                h as u32 as usize & (table - 1),
+                b,
+                "particle {i} listed in bucket {b}"
+            );
+            seen[i as usize] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&n| n == 1), "every particle listed once");
+}
+
 /// A scene's simulation with its characters loaded (shell cache in `dir`), twice: one for the
 /// CPU, one whose state the GPU simulation (also returned) steps.
 fn on_both_backends(

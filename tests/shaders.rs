@@ -157,3 +157,41 @@ fn bind_groups_bind_every_buffer_where_the_shaders_declare_it() {
     let total: usize = BINDINGS.iter().map(|g| g.len()).sum();
     assert!(seen >= total, "every binding declared somewhere");
 }
+
+#[test]
+fn the_skin_kernels_validate_and_match_their_rust_mirrors() {
+    use drape::gpu::skin::{BINDINGS, ENTRIES, MIRRORS, SOURCE};
+    let module = naga::front::wgsl::parse_str(SOURCE)
+        .unwrap_or_else(|e| panic!("skin.wgsl:\n{}", e.emit_to_string(SOURCE)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("skin.wgsl: {e:?}"));
+    for entry in ENTRIES {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "skin.wgsl: no entry point {entry}"
+        );
+    }
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).expect("layout");
+    for (name, rust_size) in MIRRORS {
+        let (handle, _) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("skin.wgsl has no struct {name}"));
+        assert_eq!(layouter[handle].size as usize, rust_size, "struct {name}");
+    }
+    let mut bound: Vec<(u32, &str)> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, v)| Some((v.binding.as_ref()?.binding, v.name.as_deref()?)))
+        .collect();
+    bound.sort();
+    let names: Vec<&str> = bound.iter().map(|(_, n)| *n).collect();
+    assert_eq!(names, BINDINGS, "skin.wgsl's bindings in order");
+    assert!(bound.iter().enumerate().all(|(i, (b, _))| *b == i as u32));
+}

@@ -3,6 +3,7 @@
 //! kept for the exports and for attachments to its skin.
 
 use crate::character::{cache::input_hash, sequence_files, Character, ShellCache};
+use crate::collide::skin::Skin;
 use crate::collide::ShellCollider;
 use crate::error::{Error, Result};
 use crate::export::gltf::AnimatedMesh;
@@ -47,6 +48,7 @@ pub fn load_characters(
             })?;
         // Normals ride the skin with the shell, when one shell serves every frame.
         let mut normals = Vec::new();
+        let mut skin = None;
         let (positions, cache) = if character.same_topology() {
             let files = sequence_files(&path)?;
             let hash = input_hash(
@@ -83,11 +85,11 @@ pub fn load_characters(
                 }
             };
             let triangles = character.triangles_of(0);
-            normals = character
-                .frames
-                .iter()
-                .map(|f| c.shell.normals(f, triangles))
+            let bound = Skin::new(&c.shell, triangles, &character.frames);
+            normals = (0..character.frames.len())
+                .map(|f| bound.particle_normals(f))
                 .collect();
+            skin = Some(std::sync::Arc::new(bound));
             (c.frames, how)
         } else {
             (
@@ -127,6 +129,7 @@ pub fn load_characters(
         };
         let mut shell = ShellCollider::new(name, spec.radius, spec.friction, positions);
         shell.normals = normals;
+        shell.skin = skin;
         out.push(LoadedCharacter {
             shell,
             report,

@@ -322,42 +322,11 @@ impl Shell {
     /// own triangle normals jump by tens of degrees between neighbouring particles, and cloth
     /// pushed out along them is spread apart over every edge.
     pub fn normals(&self, vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-        // Welded: vertices within the same 10 µm cell (a seam's two copies of a vertex rarely
-        // agree to the last bit when a generator computed them from different angles).
-        let mut weld: HashMap<[i64; 3], usize> = HashMap::new();
-        let slot: Vec<usize> = vertices
-            .iter()
-            .map(|v| {
-                let n = weld.len();
-                let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
-                *weld.entry(cell).or_insert(n)
-            })
-            .collect();
-        let mut sum = vec![Vec3::ZERO; weld.len()];
-        for t in triangles {
-            let [a, b, c] = corners(vertices, *t);
-            let n = (b - a).cross(c - a);
-            for &i in t {
-                sum[slot[i as usize]] += n;
-            }
-        }
+        let smooth = vertex_normals(vertices, triangles);
         self.triangle
             .iter()
             .zip(&self.barycentric)
-            .map(|(&t, &[u, v])| {
-                let [a, b, c] = triangles[t as usize].map(|i| sum[slot[i as usize]]);
-                let face = {
-                    let [p, q, r] = corners(vertices, triangles[t as usize]);
-                    (q - p).cross(r - p)
-                };
-                let smooth = a.normalize_or_zero() * (1.0 - u - v)
-                    + b.normalize_or_zero() * u
-                    + c.normalize_or_zero() * v;
-                smooth
-                    .try_normalize()
-                    .or_else(|| face.try_normalize())
-                    .unwrap_or(Vec3::Y)
-            })
+            .map(|(&t, &b)| particle_normal(vertices, &smooth, triangles[t as usize], b))
             .collect()
     }
 
@@ -366,4 +335,45 @@ impl Shell {
     pub fn memory_bytes(&self, frames: usize) -> (usize, usize) {
         (self.len() * 12, self.len() * 16 * frames)
     }
+}
+
+/// Each vertex's smooth unit normal (zero where it has none): the area-weighted sum of its
+/// triangles' normals, vertices within 10 µm welded (a seam's two copies of a vertex rarely
+/// agree to the last bit when a generator computed them from different angles). The GPU
+/// places shell particles from these, uploaded with the vertices of each frame.
+pub fn vertex_normals(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut weld: HashMap<[i64; 3], usize> = HashMap::new();
+    let slot: Vec<usize> = vertices
+        .iter()
+        .map(|v| {
+            let n = weld.len();
+            let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
+            *weld.entry(cell).or_insert(n)
+        })
+        .collect();
+    let mut sum = vec![Vec3::ZERO; weld.len()];
+    for t in triangles {
+        let [a, b, c] = corners(vertices, *t);
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            sum[slot[i as usize]] += n;
+        }
+    }
+    slot.iter().map(|&s| sum[s].normalize_or_zero()).collect()
+}
+
+/// The normal at barycentric `(u, v)` of triangle `t` from its corners' smooth normals
+/// ([`vertex_normals`]); the facet's normal where they cancel, +Y for a degenerate triangle.
+/// `shaders/skin.wgsl` computes the same.
+pub fn particle_normal(vertices: &[Vec3], smooth: &[Vec3], t: [u32; 3], [u, v]: [f32; 2]) -> Vec3 {
+    let [a, b, c] = t.map(|i| smooth[i as usize]);
+    let face = {
+        let [p, q, r] = corners(vertices, t);
+        (q - p).cross(r - p)
+    };
+    let smooth = a * (1.0 - u - v) + b * u + c * v;
+    smooth
+        .try_normalize()
+        .or_else(|| face.try_normalize())
+        .unwrap_or(Vec3::Y)
 }

@@ -9,6 +9,7 @@
 pub mod mesh;
 pub mod particles;
 pub mod shell;
+pub mod skin;
 
 pub use shell::ShellCollider;
 

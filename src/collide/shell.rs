@@ -32,7 +32,7 @@ fn interpolate(frames: &[Vec<Vec3>], f: f32) -> Vec<Vec3> {
 /// (a static shell, or time past the last frame), so the positions are the frame's exactly
 /// (`a.lerp(a, w)` is `a·(1 − w) + a·w`, off by rounding for most `w`: a static stool would sit
 /// a rounding away from itself, by an amount that depends on the time a bake starts at).
-fn weight(f: f32, k: usize, j: usize) -> f32 {
+pub fn frame_weight(f: f32, k: usize, j: usize) -> f32 {
     if j == k {
         0.0
     } else {
@@ -43,7 +43,7 @@ fn weight(f: f32, k: usize, j: usize) -> f32 {
 fn interpolate_into(frames: &[Vec<Vec3>], f: f32, out: &mut Vec<Vec3>) {
     let k = (f.floor().max(0.0) as usize).min(frames.len() - 1);
     let j = (k + 1).min(frames.len() - 1);
-    let w = weight(f, k, j);
+    let w = frame_weight(f, k, j);
     out.clear();
     if frames[k].len() != frames[j].len() {
         out.extend_from_slice(&frames[k]);
@@ -143,6 +143,9 @@ pub struct ShellCollider {
     /// Outward surface normals of the shell particles on every frame, when the shell rides one
     /// mesh (empty otherwise: then every contact pushes along the line between the centres).
     pub normals: Vec<Vec<Vec3>>,
+    /// The mesh the shell rides and where on it each particle sits, when its topology holds
+    /// over the frames (the GPU backend places the particles from it).
+    pub skin: Option<std::sync::Arc<super::skin::Skin>>,
     /// Positions at the end of the current substep.
     now: Vec<Vec3>,
     /// Normals at the end of the current substep (empty without `normals`).
@@ -294,6 +297,7 @@ impl ShellCollider {
             friction,
             swept: true,
             normals: Vec::new(),
+            skin: None,
             now_normal: Vec::new(),
             motion: vec![Vec3::ZERO; now.len()],
             now,
@@ -346,7 +350,7 @@ impl ShellCollider {
         let last = self.frames.len() - 1;
         let k = (to.floor().max(0.0) as usize).min(last);
         let j = (k + 1).min(last);
-        let w = weight(to, k, j);
+        let w = frame_weight(to, k, j);
         let (a, b) = (&self.frames[k], &self.frames[j]);
         let n = a.len();
         if n < PARALLEL_FROM || b.len() != n || before.len() != n {

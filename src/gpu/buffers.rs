@@ -15,7 +15,7 @@ use wgpu::util::DeviceExt;
 
 /// The WGSL names of every binding of the simulation's kernels, per group, in binding order
 /// (`tests/shaders.rs` checks them against the shaders' declarations).
-pub const BINDINGS: [&[&str]; 3] = [
+pub const BINDINGS: [&[&str]; 4] = [
     &[
         "params",
         "x",
@@ -48,6 +48,18 @@ pub const BINDINGS: [&[&str]; 3] = [
         "shell_grid",
         "shell_nearby",
     ],
+    &[
+        "field",
+        "field_faces",
+        "field_rows",
+        "field_winds",
+        "field_waves",
+        "field_attractors",
+        "field_time",
+        "face_force",
+        "field_accel",
+        "field_work",
+    ],
 ];
 
 /// Uniform slots: 0 = whole range; 1 + c = colour c's range; then one slot per substep for
@@ -56,15 +68,18 @@ pub const BINDINGS: [&[&str]; 3] = [
 pub const PARAMS_NEXT: u32 = 0;
 pub const PARAMS_COLOUR: u32 = 1;
 
-const RW: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+pub(super) const RW: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
     .union(wgpu::BufferUsages::COPY_SRC)
     .union(wgpu::BufferUsages::COPY_DST);
-const READ: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
-const READ_REFRESHED: wgpu::BufferUsages = READ.union(wgpu::BufferUsages::COPY_DST);
+pub(super) const READ: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
+/// Refreshed from the CPU (or written by a kernel of their own) and read back by tests.
+const READ_REFRESHED: wgpu::BufferUsages = READ
+    .union(wgpu::BufferUsages::COPY_DST)
+    .union(wgpu::BufferUsages::COPY_SRC);
 
 /// A buffer holding `bytes`; an empty one holds one element of the largest struct (wgpu
 /// rejects empty bindings).
-fn init(
+pub(super) fn init(
     device: &wgpu::Device,
     label: &str,
     bytes: &[u8],
@@ -85,7 +100,7 @@ fn init(
 
 /// A bind group of `group` over `named` buffers, each placed at the binding its name has in
 /// [`BINDINGS`].
-fn bind(
+pub(super) fn bind(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
     group: usize,
@@ -109,7 +124,14 @@ fn bind(
         })
         .collect();
     device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(["drape state and model", "drape residuals", "drape contacts"][group]),
+        label: Some(
+            [
+                "drape state and model",
+                "drape residuals",
+                "drape contacts",
+                "drape force fields",
+            ][group],
+        ),
         layout,
         entries: &entries,
     })
@@ -293,7 +315,8 @@ impl ParamSlots {
                     } else {
                         0
                     },
-                    predict_next: (k + 1 < sim.substeps) as u32,
+                    // With force fields each substep predicts after its fields' `forces` stage.
+                    predict_next: (k + 1 < sim.substeps && sim.forces().is_none()) as u32,
                     ..base
                 },
             );
@@ -336,9 +359,11 @@ impl ResidualGroup {
         let residuals = vec![0f32; sweeps_per_frame as usize];
         let residuals = init(device, "residuals", bytemuck::cast_slice(&residuals), RW);
         let residual_count = init(device, "residual_count", &[0u8; 4], RW);
+        let forces_work = if sim.forces().is_some() { n } else { 0 };
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: (2 * n * 16 + 4 * sweeps_per_frame as usize) as u64,
+            // Positions, velocities, residuals, and the force fields' work per particle.
+            size: (2 * n * 16 + 4 * sweeps_per_frame as usize + 4 * forces_work) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });

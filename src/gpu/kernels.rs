@@ -7,7 +7,7 @@ use super::layout::GpuParams;
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 
 /// Kernel files and their entry points.
-pub const KERNEL_FILES: [(&str, &str, &[&str]); 6] = [
+pub const KERNEL_FILES: [(&str, &str, &[&str]); 7] = [
     (
         "predict.wgsl",
         include_str!("../../shaders/predict.wgsl"),
@@ -45,6 +45,11 @@ pub const KERNEL_FILES: [(&str, &str, &[&str]); 6] = [
             "pc_push_out",
         ],
     ),
+    (
+        "forces.wgsl",
+        include_str!("../../shaders/forces.wgsl"),
+        &["wind_faces", "field_accelerate", "field_work_done"],
+    ),
 ];
 
 /// Collision functions, one file per module of `src/collide/`, included by the kernels that
@@ -80,6 +85,9 @@ pub struct Kernels {
     /// attachments (two read-only buffers) and characters' shells (three read-only buffers and
     /// the read-write nearby lists of collision passes).
     pub group2: wgpu::BindGroupLayout,
+    /// Force fields (a uniform, six read-only and three read-write buffers), read with group 0
+    /// by the force kernels only.
+    pub group3: wgpu::BindGroupLayout,
     pub predict: wgpu::ComputePipeline,
     pub project: wgpu::ComputePipeline,
     pub sweep: wgpu::ComputePipeline,
@@ -101,6 +109,11 @@ pub struct Kernels {
     pub pc_scatter: wgpu::ComputePipeline,
     pub pc_order: wgpu::ComputePipeline,
     pub pc_push_out: wgpu::ComputePipeline,
+    pub wind_faces: wgpu::ComputePipeline,
+    pub field_accelerate: wgpu::ComputePipeline,
+    pub field_work_done: wgpu::ComputePipeline,
+    /// Characters' shells placed from their skins (scenes with shells only).
+    pub skin: Option<super::skin::SkinKernels>,
 }
 
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -167,6 +180,29 @@ impl Kernels {
             bind_group_layouts: &[Some(&group0), Some(&group1), Some(&group2)],
             immediate_size: 0,
         });
+        let mut fields = vec![wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        }];
+        fields.extend((1..=6).map(|b| storage(b, true)));
+        fields.extend((7..=9).map(|b| storage(b, false)));
+        let group3 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("drape force fields"),
+            entries: &fields,
+        });
+        // The force kernels read groups 0 and 3 only (within the storage buffers per stage
+        // every other kernel needs).
+        let fields_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("drape force fields"),
+            bind_group_layouts: &[Some(&group0), None, None, Some(&group3)],
+            immediate_size: 0,
+        });
         let modules: Vec<(&str, wgpu::ShaderModule)> = KERNEL_FILES
             .iter()
             .map(|(file, _, _)| {
@@ -188,9 +224,14 @@ impl Kernels {
                 .find(|(f, _)| f == file)
                 .expect("module built")
                 .1;
+            let layout = if *file == "forces.wgsl" {
+                &fields_layout
+            } else {
+                &layout
+            };
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
-                layout: Some(&layout),
+                layout: Some(layout),
                 module,
                 entry_point: Some(entry),
                 compilation_options: wgpu::PipelineCompilationOptions {
@@ -223,9 +264,14 @@ impl Kernels {
             pc_scatter: pipeline("pc_scatter"),
             pc_order: pipeline("pc_order"),
             pc_push_out: pipeline("pc_push_out"),
+            wind_faces: pipeline("wind_faces"),
+            field_accelerate: pipeline("field_accelerate"),
+            field_work_done: pipeline("field_work_done"),
+            skin: shells.then(|| super::skin::SkinKernels::new(device)),
             group0,
             group1,
             group2,
+            group3,
         }
     }
 }

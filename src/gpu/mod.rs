@@ -4,12 +4,16 @@
 //! - [`context`]: adapter and device, errors, the `auto` choice;
 //! - [`layout`]: Pod mirrors of the WGSL structs;
 //! - [`kernels`]: every pipeline, built once;
+//! - [`fields`]: force fields' buffers;
+//! - [`skin`]: characters' shells placed from their meshes' vertices;
 //! - [`solver`]: a scene's buffers and the frame loop.
 
 pub mod buffers;
 pub mod context;
+pub mod fields;
 pub mod kernels;
 pub mod layout;
+pub mod skin;
 pub mod solver;
 
 pub use context::GpuContext;

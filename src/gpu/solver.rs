@@ -29,6 +29,12 @@ pub struct GpuSimulation {
     state: StateGroup,
     residual: ResidualGroup,
     contact: ContactGroup,
+    /// Force fields (None without).
+    fields: Option<super::fields::FieldGroup>,
+    /// Moving characters' shells placed on the GPU from their meshes (None without).
+    skin: Option<super::skin::SkinMotion>,
+    /// Which shells `skin` places (the CPU sends no snapshots of them).
+    placed_on_gpu: Vec<bool>,
     /// Timestamps between the stages of a frame, when the device has them.
     clock: Option<StageClock>,
     /// Shells that never move are uploaded with the first frame only.
@@ -162,6 +168,14 @@ impl GpuSimulation {
         let state = StateGroup::new(device, &kernels, sim);
         let residual = ResidualGroup::new(device, &kernels, sim, REDUCE_GROUP);
         let contact = ContactGroup::new(device, &kernels, sim);
+        let fields = super::fields::FieldGroup::new(device, &kernels, sim);
+        let skin = (kernels.skin.as_ref())
+            .and_then(|k| super::skin::SkinMotion::new(device, k, sim, &contact));
+        let placed_on_gpu = if skin.is_some() {
+            super::skin::placed_on_gpu(sim)
+        } else {
+            Vec::new()
+        };
         // Software adapters' timestamps overlap (lavapipe: their sum exceeds the frame's wall
         // time) and cost it a tenth of P's frame: timed there only when asked.
         let clock = (ctx.adapter.device_type != wgpu::DeviceType::Cpu)
@@ -184,6 +198,9 @@ impl GpuSimulation {
             state,
             residual,
             contact,
+            fields,
+            skin,
+            placed_on_gpu,
         })
     }
 
@@ -220,8 +237,16 @@ impl GpuSimulation {
     pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
         // Where the attached particles go this frame, substep by substep (also advances the
         // simulation's clock).
-        let driven = sim.drive_frame(!self.static_shells_uploaded);
+        let driven = sim.drive_frame(!self.static_shells_uploaded, &self.placed_on_gpu);
         self.uploaded_last_frame = self.upload(&driven);
+        if let Some(skin) = &mut self.skin {
+            let first = sim.elapsed_substeps() - sim.substeps as u64;
+            self.uploaded_last_frame += skin.upload(&self.ctx.queue, sim, first);
+        }
+        if let Some(fields) = &self.fields {
+            let first = sim.elapsed_substeps() - sim.substeps as u64;
+            self.uploaded_last_frame += fields.upload(&self.ctx.queue, sim, first);
+        }
         let encoder = self.record_frame(sim);
         let n = self.particles as u64 * 16;
         let mut encoder = encoder;
@@ -236,6 +261,11 @@ impl GpuSimulation {
                 2 * n,
                 residual_bytes,
             );
+        }
+        let work_at = 2 * n + residual_bytes;
+        if let Some(fields) = &self.fields {
+            let size = fields.work.size().min(self.particles as u64 * 4);
+            encoder.copy_buffer_to_buffer(&fields.work, 0, &self.residual.readback, work_at, size);
         }
         let scope = self
             .ctx
@@ -264,9 +294,13 @@ impl GpuSimulation {
             sim.state.positions.copy_from_slice(x);
             sim.state.velocities.copy_from_slice(v);
             if let Some(r) = &mut sim.residuals {
-                let values: &[f32] = bytemuck::cast_slice(&view[2 * n as usize..]);
+                let values: &[f32] = bytemuck::cast_slice(&view[2 * n as usize..work_at as usize]);
                 r.clear();
                 r.extend(values.iter().map(|&e| e as f64));
+            }
+            if self.fields.is_some() {
+                let work: &[f32] = bytemuck::cast_slice(&view[work_at as usize..]);
+                sim.add_force_work(work.iter().map(|&w| w as f64).sum());
             }
         }
         self.residual.readback.unmap();
@@ -282,12 +316,38 @@ impl GpuSimulation {
         let Some(source) = &self.contact.shell_nearby else {
             return Ok(());
         };
+        let bytes = self.read_back(source, 0, source.size())?;
+        sim.set_nearby_lists(bytemuck::pod_collect_to_vec(&bytes));
+        Ok(())
+    }
+
+    /// Shell `shell` as the kernels read it at the end of substep `substep` of the last frame,
+    /// in [`ShellCollider::gpu_snapshot`](crate::collide::ShellCollider::gpu_snapshot)'s form
+    /// (for tests against the CPU).
+    pub fn read_shell(
+        &self,
+        substep: u32,
+        shell: usize,
+    ) -> Result<crate::collide::shell::ShellSnapshot> {
+        let (c, info) = (&self.contact, self.contact.shells[shell]);
+        let first = (substep * c.shell_stride + info.first) as u64;
+        let particles = self.read_back(&c.shell_particle, 48 * first, 48 * info.count as u64)?;
+        let grid = (substep * c.grid_stride + info.grid) as u64;
+        let words = (info.table + 1 + info.count) as u64;
+        let grid = self.read_back(&c.shell_grid, 4 * grid, 4 * words)?;
+        Ok((
+            bytemuck::pod_collect_to_vec(&particles),
+            bytemuck::pod_collect_to_vec(&grid),
+        ))
+    }
+
+    /// `size` bytes of `source` from `offset`, copied back from the GPU.
+    fn read_back(&self, source: &wgpu::Buffer, offset: u64, size: u64) -> Result<Vec<u8>> {
         let gpu = |e: String| Error::Gpu {
             reason: format!("{}: {e}", self.ctx.adapter.name),
         };
-        let size = source.size();
         let readback = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("nearby readback"),
+            label: Some("readback"),
             size,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
@@ -296,7 +356,7 @@ impl GpuSimulation {
             .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        encoder.copy_buffer_to_buffer(source, 0, &readback, 0, size);
+        encoder.copy_buffer_to_buffer(source, offset, &readback, 0, size);
         self.ctx.queue.submit([encoder.finish()]);
         let slice = readback.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
@@ -304,15 +364,12 @@ impl GpuSimulation {
             .device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| gpu(e.to_string()))?;
-        let lists = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| gpu(format!("{e:?}")))?;
-            bytemuck::pod_collect_to_vec(&view)
-        };
+        let bytes = slice
+            .get_mapped_range()
+            .map_err(|e| gpu(format!("{e:?}")))?
+            .to_vec();
         readback.unmap();
-        sim.set_nearby_lists(lists);
-        Ok(())
+        Ok(bytes)
     }
 
     /// Writes what the CPU computed for the frame `driven` describes (attachment targets, the
@@ -378,6 +435,12 @@ impl GpuSimulation {
                 label: Some("drape frame"),
             });
         encoder.clear_buffer(&self.residual.residual_count, 0, None);
+        if let Some(fields) = &self.fields {
+            encoder.clear_buffer(&fields.work, 0, None);
+        }
+        if let Some(skin) = &self.skin {
+            skin.record(&mut encoder);
+        }
         let integrating = sim.integrating();
         let n = self.particles;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -401,7 +464,8 @@ impl GpuSimulation {
             }
         };
         tick(&mut pass);
-        if integrating {
+        // With force fields each substep predicts at its `forces` stage.
+        if integrating && self.fields.is_none() {
             dispatch(&mut pass, &k.predict, PARAMS_NEXT, n, GROUP);
         }
         tick(&mut pass);
@@ -420,6 +484,15 @@ impl GpuSimulation {
                                 GROUP,
                             );
                         }
+                    }
+                    Stage::Forces => {
+                        let fields = self.fields.as_ref().expect("scheduled with force fields");
+                        let slot = self.state.finish_slots + substep;
+                        pass.set_bind_group(3, &fields.group, &[]);
+                        if fields.faces > 0 {
+                            dispatch(&mut pass, &k.wind_faces, slot, fields.faces, GROUP);
+                        }
+                        dispatch(&mut pass, &k.field_accelerate, slot, n, GROUP);
                     }
                     Stage::Solve { iterations } => {
                         for _ in 0..iterations {
@@ -458,6 +531,10 @@ impl GpuSimulation {
                             );
                         } else {
                             dispatch(&mut pass, &k.finish_static, PARAMS_NEXT, n, GROUP);
+                        }
+                        if self.fields.is_some() {
+                            let slot = self.state.finish_slots + substep;
+                            dispatch(&mut pass, &k.field_work_done, slot, n, GROUP);
                         }
                     }
                 }

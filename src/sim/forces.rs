@@ -179,6 +179,53 @@ impl Forces {
         self.face_force = vec![Vec3::ZERO; self.faces.len()];
     }
 
+    /// The fields as the GPU reads them (`shaders/forces.wgsl`).
+    pub fn gpu_tables(&self) -> GpuFieldTables {
+        let mut rows = self.face_start.clone();
+        rows.extend_from_slice(&self.face_of);
+        GpuFieldTables {
+            faces: self.faces.iter().map(|&[a, b, c]| [a, b, c, 0]).collect(),
+            rows,
+            winds: (self.winds.iter())
+                .map(|w| GpuWind {
+                    density: w.spec.density,
+                    drag: w.spec.drag,
+                    friction: w.spec.friction,
+                    waves: w.waves.len() as u32,
+                })
+                .collect(),
+            waves: (self.winds.iter())
+                .flat_map(|w| {
+                    let mut waves: Vec<GpuWave> = (w.waves.iter())
+                        .map(|v| GpuWave {
+                            amplitude_phase: v.amplitude.extend(v.phase).to_array(),
+                            k_omega: v.k.extend(v.omega).to_array(),
+                        })
+                        .collect();
+                    waves.resize(GUST_WAVES, GpuWave::default());
+                    waves
+                })
+                .collect(),
+            attractors: (self.attractors.iter())
+                .flat_map(|a| {
+                    let p = a.position;
+                    [[p[0], p[1], p[2], a.strength], [a.radius, 0.0, 0.0, 0.0]]
+                })
+                .collect(),
+        }
+    }
+
+    /// Each wind's steady velocity at time `t` [s] (xyz) with `t` itself (w): what the GPU
+    /// reads per substep.
+    pub fn steady_at(&self, t: f32) -> Vec<Vec4> {
+        self.winds.iter().map(|w| w.steady(t).extend(t)).collect()
+    }
+
+    /// Winds.
+    pub fn winds(&self) -> usize {
+        self.winds.len()
+    }
+
     /// True when the wind has faces to press on.
     pub fn has_faces(&self) -> bool {
         !self.faces.is_empty()
@@ -247,3 +294,40 @@ impl Forces {
             });
     }
 }
+
+/// A wind's constants on the GPU (WGSL `FieldWind`); its waves are `GUST_WAVES` entries of
+/// the wave table from `GUST_WAVES` × its index.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuWind {
+    pub density: f32,
+    pub drag: f32,
+    pub friction: f32,
+    pub waves: u32,
+}
+
+/// One travelling wave of a gust field on the GPU (WGSL `FieldWave`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuWave {
+    /// Amplitude [m/s] (xyz) and phase (w).
+    pub amplitude_phase: [f32; 4],
+    /// Wave vector [1/m] (xyz) and angular frequency [1/s] (w).
+    pub k_omega: [f32; 4],
+}
+
+/// Every table the GPU's force kernels read.
+pub struct GpuFieldTables {
+    /// Faces' corners (storage indices; w unused).
+    pub faces: Vec<[u32; 4]>,
+    /// Each particle's first face entry (particles + 1 words), then the faces' indices.
+    pub rows: Vec<u32>,
+    pub winds: Vec<GpuWind>,
+    /// `GUST_WAVES` per wind (unused ones zero).
+    pub waves: Vec<GpuWave>,
+    /// Per attractor: position and strength, then radius.
+    pub attractors: Vec<[f32; 4]>,
+}
+
+/// Waves per gust field, as the GPU lays them out.
+pub const GPU_WAVES: usize = GUST_WAVES;

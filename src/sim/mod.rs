@@ -204,6 +204,7 @@ impl Simulation {
             schedule::Features {
                 attachments: !self.attachments.list.is_empty(),
                 particle_collisions: self.particle_collisions.is_some(),
+                forces: self.forces.is_some(),
             },
         )
     }
@@ -327,13 +328,13 @@ impl Simulation {
         self.nearby = lists;
     }
 
-    /// True when the scene has force fields (wind, attractors).
-    pub fn has_forces(&self) -> bool {
-        self.forces.is_some()
-    }
-
     /// Moves the characters' shells to the end of the coming substep.
     fn advance_shells(&mut self) {
+        self.advance_shells_but(&[]);
+    }
+
+    /// [`Self::advance_shells`] for the shells not marked in `skip`.
+    fn advance_shells_but(&mut self, skip: &[bool]) {
         if self.shells.is_empty() {
             return;
         }
@@ -341,9 +342,27 @@ impl Simulation {
         let from = self.elapsed_substeps as f32 / per_frame;
         let to = (self.elapsed_substeps + 1) as f32 / per_frame;
         let reach = self.largest_contact_radius();
-        for s in &mut self.shells {
+        for (i, s) in self.shells.iter_mut().enumerate() {
+            if skip.get(i) == Some(&true) {
+                continue;
+            }
             s.advance(from, to, reach);
             self.driven_speed = self.driven_speed.max(s.fastest_motion() / self.step);
+        }
+    }
+
+    /// Moves the shells marked in `whole` over the coming frame in one go (their positions at
+    /// its end serve the metrics; their motion over it, spread over its substeps, the driven
+    /// speed): for shells a GPU places itself substep by substep.
+    fn advance_shells_over_frame(&mut self, whole: &[bool]) {
+        let per_frame = self.substeps as f32;
+        let from = self.elapsed_substeps as f32 / per_frame;
+        let to = (self.elapsed_substeps + self.substeps as u64) as f32 / per_frame;
+        let reach = self.largest_contact_radius();
+        for (s, _) in self.shells.iter_mut().zip(whole).filter(|(_, &w)| w) {
+            s.advance(from, to, reach);
+            let per_substep = s.fastest_motion() / per_frame;
+            self.driven_speed = self.driven_speed.max(per_substep / self.step);
         }
     }
 
@@ -354,6 +373,27 @@ impl Simulation {
             .iter()
             .copied()
             .fold(0.0, f32::max)
+    }
+
+    /// Frames per second.
+    pub fn fps(&self) -> f32 {
+        self.fps
+    }
+
+    /// The force fields (None without `forces`).
+    pub fn forces(&self) -> Option<&forces::Forces> {
+        self.forces.as_ref()
+    }
+
+    /// Adds work the force fields did on the garments over a frame another backend ran [J]
+    /// (negative work is not counted, as on the CPU).
+    pub fn add_force_work(&mut self, work: f64) {
+        self.force_work += work.max(0.0);
+    }
+
+    /// Substeps simulated since the bake's start (the clock).
+    pub fn elapsed_substeps(&self) -> u64 {
+        self.elapsed_substeps
     }
 
     /// True when some collider follows keyframes.
@@ -379,9 +419,14 @@ impl Simulation {
     /// the end of each substep of the next frame, substep by substep; advances the clock by a
     /// frame as if it ran, leaving the colliders in their last pose: for a backend that runs
     /// the frame elsewhere (the GPU) and copies the state back. `static_shells`: include the
-    /// shells that never move too (the GPU needs them once).
-    pub fn drive_frame(&mut self, static_shells: bool) -> DrivenFrame {
+    /// shells that never move too (the GPU needs them once). The shells marked in
+    /// `placed_elsewhere` (the GPU places them from their skins) have no snapshots: they are
+    /// moved over the whole frame at once.
+    pub fn drive_frame(&mut self, static_shells: bool, placed_elsewhere: &[bool]) -> DrivenFrame {
         let mut frame = DrivenFrame::default();
+        let start = std::time::Instant::now();
+        self.advance_shells_over_frame(placed_elsewhere);
+        self.stage_times.lap(schedule::timed("shells"), start);
         let mut last: Vec<Vec3> = self
             .attachments
             .list
@@ -390,11 +435,14 @@ impl Simulation {
             .collect();
         for _ in 0..self.substeps {
             let start = std::time::Instant::now();
-            self.advance_shells();
+            self.advance_shells_but(placed_elsewhere);
             frame.shells.push(
-                self.shells
-                    .iter()
-                    .map(|s| (static_shells || !s.is_static()).then(|| s.gpu_snapshot()))
+                (self.shells.iter().enumerate())
+                    .map(|(i, s)| {
+                        let elsewhere = placed_elsewhere.get(i) == Some(&true);
+                        let wanted = !elsewhere && (static_shells || !s.is_static());
+                        wanted.then(|| s.gpu_snapshot())
+                    })
                     .collect(),
             );
             self.stage_times.lap(schedule::timed("shells"), start);
@@ -540,6 +588,9 @@ impl Simulation {
                     match stage {
                         // Placed before the region (`place_attachments`), with the shells.
                         schedule::Stage::Attach => continue,
+                        // Computed before the region (`Forces::accelerations`) into
+                        // `external`, which the prologue's prediction adds.
+                        schedule::Stage::Forces => continue,
                         // Every solver stage ends with a sync.
                         schedule::Stage::Solve { iterations } => {
                             solver.iterate(m, model, &buffers, &observe, iterations)

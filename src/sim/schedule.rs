@@ -8,12 +8,15 @@
 //! 1. `attach`: attached particles jump to their targets at the end of the substep (on the CPU
 //!    they are placed before the team region starts, as characters' shells advance; on the GPU
 //!    a kernel places them from the frame's uploaded targets);
-//! 2. `solve`: a share of the solver iterations (each: the local step projects every spring, then
+//! 2. `forces`: the force fields' accelerations (wind on the faces, attractors), and with them
+//!    the substep's prediction (on the CPU computed before the team region, with the shells; a
+//!    frame with force fields predicts every substep here, not in the prologue and `finish`);
+//! 3. `solve`: a share of the solver iterations (each: the local step projects every spring, then
 //!    inner sweeps of the global step, or one PBD iteration), on displacements Δ;
-//! 3. `contact_pass`: between shares, every particle pushed out of the colliders and characters'
+//! 4. `contact_pass`: between shares, every particle pushed out of the colliders and characters'
 //!    shells (the shells against each particle's nearby list of the previous substep);
-//! 4. `particle_collisions`: q = x + Δ sorted into a hash grid, each particle's push;
-//! 5. `finish`: tethers, collisions with the colliders and shells (swept and end point), friction,
+//! 5. `particle_collisions`: q = x + Δ sorted into a hash grid, each particle's push;
+//! 6. `finish`: tethers, collisions with the colliders and shells (swept and end point), friction,
 //!    commit (x += Δ, v = Δ/h) and the next substep's prediction, each particle alone.
 //!
 //! Why collision passes sit between shares of the iterations: a stop at the surface reaches the
@@ -27,6 +30,8 @@ use std::time::Instant;
 pub enum Stage {
     /// Attached particles to their targets.
     Attach,
+    /// The force fields' accelerations and the substep's prediction.
+    Forces,
     /// This many solver iterations.
     Solve { iterations: u32 },
     /// A collision pass on the displacement so far.
@@ -42,6 +47,7 @@ pub enum Stage {
 pub struct Features {
     pub attachments: bool,
     pub particle_collisions: bool,
+    pub forces: bool,
 }
 
 /// The stages of one substep, in order.
@@ -49,6 +55,9 @@ pub fn substep(settings: &SolverSettings, features: Features) -> Vec<Stage> {
     let mut stages = Vec::new();
     if features.attachments {
         stages.push(Stage::Attach);
+    }
+    if features.forces {
+        stages.push(Stage::Forces);
     }
     let passes = settings.contact_passes.max(1);
     for pass in 0..passes {
@@ -94,6 +103,7 @@ impl Stage {
     pub fn timed(self) -> usize {
         match self {
             Stage::Attach => 1,
+            Stage::Forces => 2,
             Stage::Solve { .. } => 3,
             Stage::ContactPass => 4,
             Stage::ParticleCollisions => 5,
@@ -163,12 +173,14 @@ mod tests {
             Features {
                 attachments: true,
                 particle_collisions: true,
+                forces: true,
             },
         );
         assert_eq!(
             stages,
             [
                 Stage::Attach,
+                Stage::Forces,
                 Stage::Solve { iterations: 3 },
                 Stage::ContactPass,
                 Stage::Solve { iterations: 3 },

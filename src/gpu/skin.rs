@@ -1,0 +1,397 @@
+//! Characters' shells placed on the GPU (`shaders/skin.wgsl`): a moving character whose mesh
+//! keeps its topology has a [`Skin`](crate::collide::skin::Skin), each shell particle bound to a
+//! triangle. The GPU keeps the binding, and a window of two character frames (vertices and
+//! their smooth normals); each frame uploads only the character frames it reaches that the
+//! window lacks (usually one: 868 vertices for the mannequin, 28 KB, against 18.7 MB of shell
+//! particles and grids at every substep before), and a few words per substep saying where it
+//! starts and ends. One compute pass then places every substep's shell particles and builds its
+//! grid, before the frame's simulation pass reads them: no CPU work per substep.
+
+use super::buffers::ContactGroup;
+use crate::collide::shell::frame_weight;
+use crate::sim::Simulation;
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+/// The kernel file.
+pub const SOURCE: &str = include_str!("../../shaders/skin.wgsl");
+
+/// Entry points, in the order a frame runs them.
+pub const ENTRIES: [&str; 5] = [
+    "skin_clear",
+    "skin_place",
+    "skin_scan",
+    "skin_scatter",
+    "skin_order",
+];
+
+/// The WGSL names of the bindings, in binding order (`tests/shaders.rs` checks them).
+pub const BINDINGS: [&str; 10] = [
+    "skin",
+    "skin_info",
+    "skin_time",
+    "corners",
+    "barycentric",
+    "window",
+    "shell_particle",
+    "shell_grid",
+    "keys",
+    "cursor",
+];
+
+/// Constants of a frame's placing (WGSL `SkinFrame`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuSkinFrame {
+    pub shell_stride: u32,
+    pub grid_stride: u32,
+    pub resident: u32,
+    pub bound: u32,
+    pub cursor_stride: u32,
+    pub pad: [u32; 3],
+}
+
+/// A shell placed on the GPU (WGSL `SkinInfo`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuSkinInfo {
+    pub first: u32,
+    pub count: u32,
+    pub grid: u32,
+    pub table: u32,
+    pub cell: f32,
+    pub bound: u32,
+    pub window: u32,
+    pub vertices: u32,
+    pub cursor: u32,
+    pub pad: [u32; 3],
+}
+
+/// Where one substep starts and ends for one shell (WGSL `SkinTime`): window slots and weights.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuSkinTime {
+    pub to_a: u32,
+    pub to_b: u32,
+    pub to_w: f32,
+    pub from_a: u32,
+    pub from_b: u32,
+    pub from_w: f32,
+    pub pad: [u32; 2],
+}
+
+/// The WGSL structs and the sizes of their Rust mirrors, for the layout test.
+pub const MIRRORS: [(&str, usize); 3] = [
+    ("SkinFrame", std::mem::size_of::<GpuSkinFrame>()),
+    ("SkinInfo", std::mem::size_of::<GpuSkinInfo>()),
+    ("SkinTime", std::mem::size_of::<GpuSkinTime>()),
+];
+
+/// Character frames the GPU holds per shell.
+const SLOTS: usize = 2;
+
+/// Threads per workgroup (the kernels' `GROUP`) and the scan's workgroup.
+const GROUP: u32 = 64;
+
+/// The skin kernels and their bind group layout, built once per device.
+#[derive(Clone)]
+pub struct SkinKernels {
+    layout: wgpu::BindGroupLayout,
+    pipelines: Vec<wgpu::ComputePipeline>,
+}
+
+impl SkinKernels {
+    pub fn new(device: &wgpu::Device) -> SkinKernels {
+        let entry = |binding: u32| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: match binding {
+                    0 => wgpu::BufferBindingType::Uniform,
+                    1..=5 => wgpu::BufferBindingType::Storage { read_only: true },
+                    _ => wgpu::BufferBindingType::Storage { read_only: false },
+                },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let entries: Vec<_> = (0..BINDINGS.len() as u32).map(entry).collect();
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("drape skin"),
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("drape skin"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("skin.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SOURCE.into()),
+        });
+        let pipelines = ENTRIES
+            .iter()
+            .map(|entry| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            })
+            .collect();
+        SkinKernels { layout, pipelines }
+    }
+}
+
+/// A simulation's shells placed on the GPU: their buffers and which character frames the
+/// window holds.
+pub struct SkinMotion {
+    group: wgpu::BindGroup,
+    pipelines: Vec<wgpu::ComputePipeline>,
+    times: wgpu::Buffer,
+    window: wgpu::Buffer,
+    /// Per resident shell: its index among the simulation's shells and its GPU record.
+    resident: Vec<(usize, GpuSkinInfo)>,
+    /// Per resident shell, the character frame in each window slot.
+    held: Vec<[Option<usize>; SLOTS]>,
+    substeps: u32,
+    /// The most particles and buckets of a resident shell (the dispatches' width).
+    widest: (u32, u32),
+}
+
+/// Shells the GPU places itself: moving ones bound to a mesh (the rest are uploaded from the
+/// CPU: static ones once, re-sampled ones every substep).
+pub fn placed_on_gpu(sim: &Simulation) -> Vec<bool> {
+    (sim.shells.iter())
+        .map(|s| {
+            let bound = s.skin.as_ref().map(|k| k.particle_triangle.len());
+            !s.is_static() && bound == Some(s.most_particles())
+        })
+        .collect()
+}
+
+/// The frames before and after fractional frame `f` of a shell with frames 0…`last`, and the
+/// weight between them (`ShellCollider::advance`'s).
+fn frames_at(f: f32, last: usize) -> (usize, usize, f32) {
+    let k = (f.floor().max(0.0) as usize).min(last);
+    let j = (k + 1).min(last);
+    let w = frame_weight(f, k, j);
+    // At weight 0 the later frame is not read (it may lie past the window).
+    (k, if w == 0.0 { k } else { j }, w)
+}
+
+fn groups(count: u32) -> u32 {
+    count.div_ceil(GROUP).clamp(1, 65_535)
+}
+
+impl SkinMotion {
+    /// The buffers for `sim`'s shells that [`placed_on_gpu`] marks, over `contact`'s shell
+    /// buffers; None when there are none.
+    // Long: the layout of every resident shell, then ten buffers made and bound.
+    pub fn new(
+        device: &wgpu::Device,
+        kernels: &SkinKernels,
+        sim: &Simulation,
+        contact: &ContactGroup,
+    ) -> Option<SkinMotion> {
+        let mut resident = Vec::new();
+        let (mut bound, mut window, mut cursor) = (0u32, 0u32, 0u32);
+        let (mut corners, mut barycentric) = (Vec::new(), Vec::new());
+        for (i, on) in placed_on_gpu(sim).into_iter().enumerate() {
+            let (Some(skin), true) = (&sim.shells[i].skin, on) else {
+                continue;
+            };
+            let shell = contact.shells[i];
+            let vertices = skin.vertex_count() as u32;
+            resident.push((
+                i,
+                GpuSkinInfo {
+                    first: shell.first,
+                    count: shell.count,
+                    grid: shell.grid,
+                    table: shell.table,
+                    cell: shell.cell,
+                    bound,
+                    window,
+                    vertices,
+                    cursor,
+                    pad: [0; 3],
+                },
+            ));
+            corners.extend(skin.corners());
+            barycentric.extend_from_slice(&skin.barycentric);
+            bound += shell.count;
+            window += SLOTS as u32 * 2 * vertices;
+            cursor += shell.table + 1;
+        }
+        if resident.is_empty() {
+            return None;
+        }
+        let substeps = sim.substeps;
+        let r = resident.len() as u32;
+        let frame = GpuSkinFrame {
+            shell_stride: contact.shell_stride,
+            grid_stride: contact.grid_stride,
+            resident: r,
+            bound,
+            cursor_stride: cursor,
+            pad: [0; 3],
+        };
+        let infos: Vec<GpuSkinInfo> = resident.iter().map(|(_, info)| *info).collect();
+        let buffer = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage,
+            })
+        };
+        let empty = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let refreshed = U::STORAGE | U::COPY_DST;
+        let uniform = buffer("skin", bytemuck::bytes_of(&frame), U::UNIFORM);
+        let info = buffer("skin_info", bytemuck::cast_slice(&infos), U::STORAGE);
+        let times = empty("skin_time", 32 * (substeps * r) as u64, refreshed);
+        let corners = buffer("corners", bytemuck::cast_slice(&corners), U::STORAGE);
+        let barycentric = buffer(
+            "barycentric",
+            bytemuck::cast_slice(&barycentric),
+            U::STORAGE,
+        );
+        let window = empty("window", 16 * window as u64, refreshed);
+        let keys = empty("keys", 4 * (substeps * bound) as u64, U::STORAGE);
+        let cursors = empty("cursor", 4 * (substeps * cursor) as u64, U::STORAGE);
+        let resources = [
+            &uniform,
+            &info,
+            &times,
+            &corners,
+            &barycentric,
+            &window,
+            &contact.shell_particle,
+            &contact.shell_grid,
+            &keys,
+            &cursors,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = (resources.iter().enumerate())
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("drape skin"),
+            layout: &kernels.layout,
+            entries: &entries,
+        });
+        let widest = (infos.iter()).fold((0, 0), |(c, t), i| (c.max(i.count), t.max(i.table + 1)));
+        Some(SkinMotion {
+            group,
+            pipelines: kernels.pipelines.clone(),
+            times,
+            window,
+            held: vec![[None; SLOTS]; resident.len()],
+            resident,
+            substeps,
+            widest,
+        })
+    }
+
+    /// Uploads what the frame whose substeps start at substep `first` (counted from the
+    /// bake's start) needs: the character frames its substeps reach that the window lacks, and
+    /// where each substep starts and ends. Returns the bytes written.
+    pub fn upload(&mut self, queue: &wgpu::Queue, sim: &Simulation, first: u64) -> u64 {
+        let per_frame = self.substeps as f32;
+        let mut times = Vec::with_capacity((self.substeps as usize) * self.resident.len());
+        let mut uploaded = 0u64;
+        for s in 0..self.substeps as u64 {
+            let from = (first + s) as f32 / per_frame;
+            let to = (first + s + 1) as f32 / per_frame;
+            for (r, (shell, info)) in self.resident.iter().enumerate() {
+                let skin = sim.shells[*shell]
+                    .skin
+                    .as_ref()
+                    .expect("resident shells have skins");
+                let last = skin.vertices.len() - 1;
+                let (fa, fb, fw) = frames_at(from, last);
+                let (ta, tb, tw) = frames_at(to, last);
+                let mut slot = |frame: usize| {
+                    let at = frame % SLOTS;
+                    if self.held[r][at] != Some(frame) {
+                        let bytes = window_frame(&skin.vertices[frame], &skin.normals[frame]);
+                        let offset = 16 * (info.window + at as u32 * 2 * info.vertices) as u64;
+                        queue.write_buffer(&self.window, offset, bytemuck::cast_slice(&bytes));
+                        uploaded += 16 * bytes.len() as u64;
+                        self.held[r][at] = Some(frame);
+                    }
+                    at as u32
+                };
+                times.push(GpuSkinTime {
+                    to_a: slot(ta),
+                    to_b: slot(tb),
+                    to_w: tw,
+                    from_a: slot(fa),
+                    from_b: slot(fb),
+                    from_w: fw,
+                    pad: [0; 2],
+                });
+            }
+        }
+        // Every frame a substep reads must still be in the window after the others came in.
+        debug_assert!(self.window_holds_the_frame(sim, first));
+        queue.write_buffer(&self.times, 0, bytemuck::cast_slice(&times));
+        uploaded + 32 * times.len() as u64
+    }
+
+    /// True when the window holds every frame the substeps from `first` read.
+    fn window_holds_the_frame(&self, sim: &Simulation, first: u64) -> bool {
+        (0..=self.substeps as u64).all(|s| {
+            let f = (first + s) as f32 / self.substeps as f32;
+            self.resident.iter().enumerate().all(|(r, (shell, _))| {
+                let last = sim.shells[*shell].frames.len() - 1;
+                let (a, b, _) = frames_at(f, last);
+                self.held[r][a % SLOTS] == Some(a) && self.held[r][b % SLOTS] == Some(b)
+            })
+        })
+    }
+
+    /// Records the pass that places every substep's shell particles and builds their grids.
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("drape skin"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.group, &[]);
+        let (particles, buckets) = self.widest;
+        let r = self.resident.len() as u32;
+        let widths = [
+            groups(buckets),
+            groups(particles),
+            1,
+            groups(particles),
+            groups(buckets),
+        ];
+        for (pipeline, x) in self.pipelines.iter().zip(widths) {
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(x, self.substeps, r);
+        }
+    }
+}
+
+/// One character frame as the window holds it: its vertices, then their normals.
+fn window_frame(vertices: &[Vec3], normals: &[Vec3]) -> Vec<glam::Vec4> {
+    (vertices.iter().chain(normals))
+        .map(|v| v.extend(0.0))
+        .collect()
+}
