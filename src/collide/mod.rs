@@ -223,6 +223,13 @@ impl Collider {
         )
     }
 
+    /// True for a collider that stands still, with the swept test and an exact distance: its
+    /// [`Collider::resolve`] returns the displacement unchanged when the particle starts
+    /// farther from it than it moves (a floor, for cloth that never comes near it).
+    pub fn is_quiet(&self) -> bool {
+        self.swept && self.exact() && self.moved == Vec3::ZERO
+    }
+
     /// Signed distance of `p` from the surface (negative inside) and the outward normal there.
     #[inline]
     pub fn distance(&self, p: Vec3) -> (f32, Vec3) {

@@ -66,6 +66,9 @@ pub struct Simulation {
     /// With several collision passes, each garment particle's nearby shell particles, per
     /// shell (shell-major), found at the end of the previous substep.
     nearby: Vec<crate::collide::shell::Nearby>,
+    /// Each particle's clearance from the quiet colliders at the start of the substep (see
+    /// [`Stages::contact_pass`]), kept between a substep's collision passes.
+    clearance: Vec<f32>,
     /// Particles following animated targets.
     pub attachments: attach::Attachments,
     /// Frames per second (the clock of characters and keyframes).
@@ -156,6 +159,7 @@ impl Simulation {
             grid,
             pushes,
             nearby: Vec::new(),
+            clearance: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
@@ -534,6 +538,14 @@ impl Simulation {
             self.nearby = vec![[u32::MAX; crate::collide::shell::NEARBY]; nearby_len];
         }
         let nearby = Shared::new(&mut self.nearby);
+        let clearance_len = if passes > 1 {
+            self.model.particle_count()
+        } else {
+            0
+        };
+        self.clearance.resize(clearance_len, f32::NEG_INFINITY);
+        let clearance = Shared::new(&mut self.clearance);
+        let quiet: Vec<bool> = self.colliders.iter().map(Collider::is_quiet).collect();
         let model = &self.model;
         let recording = self.residuals.is_some();
         let residuals = Mutex::new(self.residuals.as_mut());
@@ -562,6 +574,8 @@ impl Simulation {
             velocities,
             pushes: self.particle_collisions.is_some().then_some(pushes),
             nearby,
+            clearance,
+            quiet: &quiet,
             external: &self.external,
         };
         let solver = &self.solver;
@@ -584,6 +598,7 @@ impl Simulation {
             m.sync();
             lap(schedule::timed("predict"));
             for k in 0..count {
+                let mut first_pass = true;
                 for &stage in &schedule {
                     match stage {
                         // Placed before the region (`place_attachments`), with the shells.
@@ -596,7 +611,8 @@ impl Simulation {
                             solver.iterate(m, model, &buffers, &observe, iterations)
                         }
                         schedule::Stage::ContactPass => {
-                            stages.contact_pass(m);
+                            stages.contact_pass(m, first_pass);
+                            first_pass = false;
                             m.sync();
                         }
                         schedule::Stage::ParticleCollisions => stages.particle_collisions(
@@ -702,6 +718,10 @@ struct Stages<'a> {
     pushes: Option<Shared<Vec4>>,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     nearby: Shared<crate::collide::shell::Nearby>,
+    /// Each particle's clearance from the quiet colliders (with collision passes).
+    clearance: Shared<f32>,
+    /// Which colliders are quiet ([`Collider::is_quiet`]).
+    quiet: &'a [bool],
     /// Each particle's acceleration by the force fields (empty without).
     external: &'a [Vec4],
 }
@@ -764,7 +784,13 @@ impl Stages<'_> {
     /// A collision pass inside the solve, for this thread's free particles: collisions and
     /// friction on Δ as at the end of the substep, the characters' shells tested only against
     /// each particle's nearby shell particles.
-    fn contact_pass(&self, m: &Member) {
+    ///
+    /// The quiet colliders (static, swept, with an exact distance: a floor) are skipped for a
+    /// particle whose displacement is shorter than its clearance, the least of their distances
+    /// from where it starts the substep less its contact radius (measured at the substep's
+    /// first pass): exactly where `Collider::resolve` would return the displacement unchanged
+    /// from its first test, at a tenth of the cost (P's floor cost 3.4 of its 40 ms per frame).
+    fn contact_pass(&self, m: &Member, first: bool) {
         let (model, b) = (self.model, &self.b);
         let particles = model.particle_count();
         for i in self.free_particles(m) {
@@ -773,8 +799,20 @@ impl Stages<'_> {
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
                 let r = model.contact_radius[i];
-                for c in self.colliders {
+                let clearance = if first {
+                    let c = self.clearance_of(x, r);
+                    self.clearance.set(i, c);
+                    c
+                } else {
+                    self.clearance.get(i)
+                };
+                let mut length = d.truncate().length();
+                for (c, &quiet) in self.colliders.iter().zip(self.quiet) {
+                    if quiet && clearance >= length {
+                        continue;
+                    }
                     d = c.resolve(x, d, r);
+                    length = d.truncate().length();
                 }
                 for (k, s) in self.shells.iter().enumerate() {
                     d = s.resolve_nearby(x, d, r, &self.nearby.get(k * particles + i));
@@ -782,6 +820,17 @@ impl Stages<'_> {
                 b.delta.set(i, d);
             }
         }
+    }
+
+    /// The least distance of `x` from the quiet colliders less `radius` (−∞ without any).
+    #[inline]
+    fn clearance_of(&self, x: Vec4, radius: f32) -> f32 {
+        let x = x.truncate();
+        (self.colliders.iter().zip(self.quiet))
+            .filter(|(_, &quiet)| quiet)
+            .map(|(c, _)| c.distance(x).0 - radius)
+            .reduce(f32::min)
+            .unwrap_or(f32::NEG_INFINITY)
     }
 
     /// Ends the substep for this thread's free particles: long-range attachments to the pins,
@@ -803,8 +852,19 @@ impl Stages<'_> {
                     d += constraint::tether_correction(offset, t.rest);
                 }
                 let r = model.contact_radius[i];
-                for c in self.colliders {
+                // The clearance the substep's first collision pass measured (−∞ without passes).
+                let clearance = if self.clearance.is_empty() {
+                    f32::NEG_INFINITY
+                } else {
+                    self.clearance.get(i)
+                };
+                let mut length = d.truncate().length();
+                for (c, &quiet) in self.colliders.iter().zip(self.quiet) {
+                    if quiet && clearance >= length {
+                        continue;
+                    }
                     d = c.resolve(x, d, r);
+                    length = d.truncate().length();
                 }
                 let particles = model.particle_count();
                 for (k, s) in self.shells.iter().enumerate() {
