@@ -806,20 +806,34 @@ impl Stages<'_> {
                 } else {
                     self.clearance.get(i)
                 };
-                let mut length = d.truncate().length();
-                for (c, &quiet) in self.colliders.iter().zip(self.quiet) {
-                    if quiet && clearance >= length {
-                        continue;
-                    }
-                    d = c.resolve(x, d, r);
-                    length = d.truncate().length();
-                }
+                d = self.resolve_colliders(x, d, r, clearance);
                 for (k, s) in self.shells.iter().enumerate() {
                     d = s.resolve_nearby(x, d, r, &self.nearby.get(k * particles + i));
                 }
                 b.delta.set(i, d);
             }
         }
+    }
+
+    /// Every collider's `resolve` in turn, skipping the quiet ones while the displacement is
+    /// shorter than `clearance` (−∞: none skipped, and no length computed).
+    #[inline]
+    fn resolve_colliders(&self, x: Vec4, mut d: Vec4, r: f32, clearance: f32) -> Vec4 {
+        if clearance == f32::NEG_INFINITY {
+            for c in self.colliders {
+                d = c.resolve(x, d, r);
+            }
+            return d;
+        }
+        let mut length = d.truncate().length();
+        for (c, &quiet) in self.colliders.iter().zip(self.quiet) {
+            if quiet && clearance >= length {
+                continue;
+            }
+            d = c.resolve(x, d, r);
+            length = d.truncate().length();
+        }
+        d
     }
 
     /// The least distance of `x` from the quiet colliders less `radius` (−∞ without any).
@@ -858,14 +872,7 @@ impl Stages<'_> {
                 } else {
                     self.clearance.get(i)
                 };
-                let mut length = d.truncate().length();
-                for (c, &quiet) in self.colliders.iter().zip(self.quiet) {
-                    if quiet && clearance >= length {
-                        continue;
-                    }
-                    d = c.resolve(x, d, r);
-                    length = d.truncate().length();
-                }
+                d = self.resolve_colliders(x, d, r, clearance);
                 let particles = model.particle_count();
                 for (k, s) in self.shells.iter().enumerate() {
                     // With collision passes, list the shell particles near i for the next ones.
