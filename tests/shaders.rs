@@ -14,41 +14,53 @@ fn module(file: &str) -> (naga::Module, String) {
     (module, text)
 }
 
+/// `module` (named `file`) validates and has every entry point of `entries`.
+fn assert_valid_with_entries(file: &str, module: &naga::Module, entries: &[&str]) {
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(module)
+    .unwrap_or_else(|e| panic!("{file}: {e:?}"));
+    for entry in entries {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == *entry),
+            "{file}: no entry point {entry}"
+        );
+    }
+}
+
+/// Every struct of `mirrors` is in `module` with the size of its Rust mirror.
+fn assert_sizes(file: &str, module: &naga::Module, mirrors: &[(&str, usize)]) {
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).expect("layout");
+    for (name, rust_size) in mirrors {
+        let (handle, _) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(*name))
+            .unwrap_or_else(|| panic!("{file} has no struct {name}"));
+        assert_eq!(
+            layouter[handle].size as usize, *rust_size,
+            "struct {name}: WGSL and Rust sizes differ"
+        );
+    }
+}
+
 #[test]
 fn every_kernel_validates_and_has_its_entry_points() {
     for (file, _, entries) in KERNEL_FILES {
         let (module, _) = module(file);
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{file}: {e:?}"));
-        for entry in entries {
-            assert!(
-                module.entry_points.iter().any(|e| e.name == *entry),
-                "{file}: no entry point {entry}"
-            );
-        }
+        assert_valid_with_entries(file, &module, entries);
     }
 }
 
 #[test]
 fn wgsl_structs_match_their_rust_mirrors() {
-    let (module, _) = module("predict.wgsl");
-    let mut layouter = naga::proc::Layouter::default();
-    layouter.update(module.to_ctx()).expect("layout");
-    for (name, rust_size) in MIRRORS {
-        let (handle, _) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("common.wgsl has no struct {name}"));
-        assert_eq!(
-            layouter[handle].size as usize, rust_size,
-            "struct {name}: WGSL and Rust sizes differ"
-        );
-    }
+    let (common, _) = module("predict.wgsl");
+    assert_sizes("common.wgsl", &common, &MIRRORS);
+    let (forces, _) = module("forces.wgsl");
+    assert_sizes("forces.wgsl", &forces, &drape::gpu::layout::FIELD_MIRRORS);
 }
 
 #[test]
@@ -118,18 +130,8 @@ fn the_preview_shader_validates_and_has_its_entry_points() {
     let text = std::fs::read_to_string(path).unwrap();
     let module = naga::front::wgsl::parse_str(&text)
         .unwrap_or_else(|e| panic!("render.wgsl:\n{}", e.emit_to_string(&text)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("render.wgsl: {e:?}"));
-    for entry in ["vs_main", "fs_main", "vs_line", "fs_line", "vs_shadow"] {
-        assert!(
-            module.entry_points.iter().any(|e| e.name == entry),
-            "render.wgsl: no entry point {entry}"
-        );
-    }
+    let entries = ["vs_main", "fs_main", "vs_line", "fs_line", "vs_shadow"];
+    assert_valid_with_entries("render.wgsl", &module, &entries);
 }
 
 #[test]
@@ -163,28 +165,8 @@ fn the_skin_kernels_validate_and_match_their_rust_mirrors() {
     use drape::gpu::skin::{BINDINGS, ENTRIES, MIRRORS, SOURCE};
     let module = naga::front::wgsl::parse_str(SOURCE)
         .unwrap_or_else(|e| panic!("skin.wgsl:\n{}", e.emit_to_string(SOURCE)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("skin.wgsl: {e:?}"));
-    for entry in ENTRIES {
-        assert!(
-            module.entry_points.iter().any(|e| e.name == entry),
-            "skin.wgsl: no entry point {entry}"
-        );
-    }
-    let mut layouter = naga::proc::Layouter::default();
-    layouter.update(module.to_ctx()).expect("layout");
-    for (name, rust_size) in MIRRORS {
-        let (handle, _) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("skin.wgsl has no struct {name}"));
-        assert_eq!(layouter[handle].size as usize, rust_size, "struct {name}");
-    }
+    assert_valid_with_entries("skin.wgsl", &module, &ENTRIES);
+    assert_sizes("skin.wgsl", &module, &MIRRORS);
     let mut bound: Vec<(u32, &str)> = module
         .global_variables
         .iter()

@@ -111,7 +111,7 @@ pub mod collider_kind {
 
 /// Constants the kernels share with the Rust code, by their WGSL name: `tests/shaders.rs`
 /// checks that every one is declared in some kernel with this value.
-pub const SHARED_CONSTANTS: [(&str, f64); 11] = [
+pub const SHARED_CONSTANTS: [(&str, f64); 12] = [
     ("NEARBY", crate::collide::shell::NEARBY as f64),
     ("SHELL_FOUND", crate::collide::shell::SHELL_FOUND as f64),
     ("SKIP_STEPS", crate::collide::particles::SKIP_STEPS as f64),
@@ -123,6 +123,23 @@ pub const SHARED_CONSTANTS: [(&str, f64); 11] = [
     ("KIND_CAPSULE", collider_kind::CAPSULE as f64),
     ("KIND_FUNNEL", collider_kind::FUNNEL as f64),
     ("KIND_WEDGE", collider_kind::WEDGE as f64),
+    ("GUST_WAVES", crate::sim::forces::GPU_WAVES as f64),
+];
+
+/// The force kernels' structs (`shaders/forces.wgsl`) with the sizes of their Rust mirrors.
+pub const FIELD_MIRRORS: [(&str, usize); 3] = [
+    (
+        "FieldCounts",
+        std::mem::size_of::<super::fields::GpuFieldCounts>(),
+    ),
+    (
+        "FieldWind",
+        std::mem::size_of::<crate::sim::forces::GpuWind>(),
+    ),
+    (
+        "FieldWave",
+        std::mem::size_of::<crate::sim::forces::GpuWave>(),
+    ),
 ];
 
 /// `(WGSL struct, [(member, byte offset in the Rust mirror)])` from the Rust fields of the same
