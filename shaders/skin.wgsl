@@ -1,8 +1,10 @@
 // Characters' shells placed on the GPU from their skins (src/gpu/skin.rs): each shell particle
-// sits at barycentric coordinates on a triangle of the character's mesh, whose vertices (and
-// smooth vertex normals) the CPU uploads once per character frame. For every substep of a frame
-// at once: each particle's position, motion and normal where `ShellCollider::advance` puts them
-// on the CPU (the same arithmetic: positions per frame, then linear between frames), then each
+// sits at barycentric coordinates on a triangle of the character's mesh, whose vertices the CPU
+// uploads once per character frame. First the smooth normals of the frames in the window (each
+// welded vertex's triangles' normals summed in triangle order, as
+// `character::shell::welded_normals` sums them); then for every substep of a frame at once:
+// each particle's position, motion and normal where `ShellCollider::advance` puts them on the
+// CPU (the same arithmetic: positions per frame, then linear between frames), then each
 // substep's hash grid by a counting sort (clear, count, one-workgroup scan per substep and shell,
 // scatter, each bucket in ascending order, as the CPU's sort leaves it). Compiled on its own
 // (not with common.wgsl): its buffers are bound as read-write and atomic here.
@@ -22,7 +24,9 @@ struct SkinFrame {
 }
 
 // A shell placed here: its share of the shell buffers (ShellInfo's), of the binding, of the
-// vertex window (two frames of `vertices` positions then as many normals) and of the cursors.
+// vertex window (two frames of `vertices` positions), of the cursors, of its mesh's triangles,
+// of the vertices' weld slots, of the slots' triangle lists and of the slots' normals (two
+// frames of `slots`).
 struct SkinInfo {
     first: u32,
     count: u32,
@@ -33,9 +37,13 @@ struct SkinInfo {
     window: u32,
     vertices: u32,
     cursor: u32,
+    triangles: u32,
+    vertex: u32,
+    weld: u32,
+    slots: u32,
+    faces: u32,
+    normals: u32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 // Where a substep starts and ends, per shell: the window slots of the frames before and after
@@ -57,11 +65,17 @@ struct SkinTime {
 @group(0) @binding(3) var<storage, read> corners: array<vec4<u32>>;
 @group(0) @binding(4) var<storage, read> barycentric: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read> window: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read> mesh_triangles: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read> vertex_slot: array<u32>;
+// Each weld slot's first entry in `slot_faces` (slots + 1 per shell), and the entries.
+@group(0) @binding(8) var<storage, read> slot_start: array<u32>;
+@group(0) @binding(9) var<storage, read> slot_faces: array<u32>;
 // ShellParticle (position, motion, normal) as three vec4s.
-@group(0) @binding(6) var<storage, read_write> shell_particle: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> shell_grid: array<atomic<u32>>;
-@group(0) @binding(8) var<storage, read_write> keys: array<u32>;
-@group(0) @binding(9) var<storage, read_write> cursor: array<atomic<u32>>;
+@group(0) @binding(10) var<storage, read_write> shell_particle: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> shell_grid: array<atomic<u32>>;
+@group(0) @binding(12) var<storage, read_write> keys: array<u32>;
+@group(0) @binding(13) var<storage, read_write> cursor: array<atomic<u32>>;
+@group(0) @binding(14) var<storage, read_write> slot_normal: array<vec4<f32>>;
 
 const GROUP: u32 = 64u;
 
@@ -91,7 +105,7 @@ fn unit(v: vec3<f32>) -> vec4<f32> {
 
 // A particle's position on the frame in window slot `slot` (Shell::positions).
 fn slot_position(info: SkinInfo, slot: u32, c: vec4<u32>, uv: vec2<f32>) -> vec3<f32> {
-    let base = info.window + slot * 2u * info.vertices;
+    let base = info.window + slot * info.vertices;
     let a = window[base + c.x].xyz;
     let b = window[base + c.y].xyz;
     let d = window[base + c.z].xyz;
@@ -99,11 +113,13 @@ fn slot_position(info: SkinInfo, slot: u32, c: vec4<u32>, uv: vec2<f32>) -> vec3
 }
 
 // A particle's normal on that frame (character::shell::particle_normal).
-fn slot_normal(info: SkinInfo, slot: u32, c: vec4<u32>, uv: vec2<f32>) -> vec3<f32> {
-    let base = info.window + slot * 2u * info.vertices;
-    let normals = base + info.vertices;
-    let mixed = window[normals + c.x].xyz * (1.0 - uv.x - uv.y) + window[normals + c.y].xyz * uv.x
-        + window[normals + c.z].xyz * uv.y;
+fn particle_normal(info: SkinInfo, slot: u32, c: vec4<u32>, uv: vec2<f32>) -> vec3<f32> {
+    let base = info.window + slot * info.vertices;
+    let normals = info.normals + slot * info.slots;
+    let na = slot_normal[normals + vertex_slot[info.vertex + c.x]].xyz;
+    let nb = slot_normal[normals + vertex_slot[info.vertex + c.y]].xyz;
+    let nc = slot_normal[normals + vertex_slot[info.vertex + c.z]].xyz;
+    let mixed = na * (1.0 - uv.x - uv.y) + nb * uv.x + nc * uv.y;
     let n = unit(mixed);
     if (n.w > 0.0) {
         return n.xyz;
@@ -122,6 +138,24 @@ fn blend(a: vec3<f32>, b: vec3<f32>, w: f32) -> vec3<f32> {
         return a;
     }
     return a * (1.0 - w) + b * w;
+}
+
+// Each weld slot's smooth normal on each frame of the window (welded_normals): the normals of
+// its triangles, (b − a) × (c − a), summed in triangle order, made unit (zero where they
+// cancel). Dispatched as (x, window slot, shell).
+@compute @workgroup_size(64)
+fn skin_normals(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let info = skin_info[id.z];
+    let base = info.window + id.y * info.vertices;
+    for (var s = id.x; s < info.slots; s += groups.x * GROUP) {
+        var sum = vec3<f32>(0.0);
+        for (var e = slot_start[info.weld + s]; e < slot_start[info.weld + s + 1u]; e++) {
+            let t = mesh_triangles[info.triangles + slot_faces[info.faces + e]];
+            let a = window[base + t.x].xyz;
+            sum = sum + cross(window[base + t.y].xyz - a, window[base + t.z].xyz - a);
+        }
+        slot_normal[info.normals + id.y * info.slots + s] = vec4<f32>(unit(sum).xyz, 0.0);
+    }
 }
 
 // Each resident shell's bucket starts (table + 1 words) of every substep to zero.
@@ -146,7 +180,7 @@ fn skin_place(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
         let uv = barycentric[info.bound + i];
         let p = blend(slot_position(info, t.to_a, c, uv), slot_position(info, t.to_b, c, uv), t.to_w);
         let q = blend(slot_position(info, t.from_a, c, uv), slot_position(info, t.from_b, c, uv), t.from_w);
-        let n = unit(blend(slot_normal(info, t.to_a, c, uv), slot_normal(info, t.to_b, c, uv), t.to_w));
+        let n = unit(blend(particle_normal(info, t.to_a, c, uv), particle_normal(info, t.to_b, c, uv), t.to_w));
         let normal = select(vec3<f32>(0.0, 1.0, 0.0), n.xyz, n.w > 0.0);
         let out = 3u * (substep * skin.shell_stride + info.first + i);
         shell_particle[out] = vec4<f32>(p, 0.0);

@@ -337,29 +337,81 @@ impl Shell {
     }
 }
 
+/// Vertices welded for smooth normals: vertices within the same 10 µm cell share a slot (a
+/// seam's two copies of a vertex rarely agree to the last bit when a generator computed them
+/// from different angles).
+#[derive(Clone, Debug, Default)]
+pub struct Weld {
+    /// Each vertex's slot.
+    pub slot: Vec<u32>,
+    /// Number of slots.
+    pub slots: usize,
+}
+
+impl Weld {
+    /// The welding of `vertices`.
+    pub fn of(vertices: &[Vec3]) -> Weld {
+        let mut weld: HashMap<[i64; 3], u32> = HashMap::new();
+        let slot: Vec<u32> = vertices
+            .iter()
+            .map(|v| {
+                let n = weld.len() as u32;
+                let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
+                *weld.entry(cell).or_insert(n)
+            })
+            .collect();
+        Weld {
+            slots: weld.len(),
+            slot,
+        }
+    }
+
+    /// Each slot's triangles (compressed rows: `faces[start[s]..start[s + 1]]`), a triangle
+    /// once per corner it has in the slot, in triangle order: the order [`welded_normals`]
+    /// adds them in (the GPU sums each slot's normals from these).
+    pub fn slot_faces(&self, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+        let mut start = vec![0u32; self.slots + 1];
+        for t in triangles {
+            for &i in t {
+                start[self.slot[i as usize] as usize + 1] += 1;
+            }
+        }
+        for s in 0..self.slots {
+            start[s + 1] += start[s];
+        }
+        let mut next = start.clone();
+        let mut faces = vec![0u32; 3 * triangles.len()];
+        for (k, t) in triangles.iter().enumerate() {
+            for &i in t {
+                let at = &mut next[self.slot[i as usize] as usize];
+                faces[*at as usize] = k as u32;
+                *at += 1;
+            }
+        }
+        (start, faces)
+    }
+}
+
 /// Each vertex's smooth unit normal (zero where it has none): the area-weighted sum of its
-/// triangles' normals, vertices within 10 µm welded (a seam's two copies of a vertex rarely
-/// agree to the last bit when a generator computed them from different angles). The GPU
-/// places shell particles from these, uploaded with the vertices of each frame.
+/// triangles' normals, vertices welded ([`Weld`]).
 pub fn vertex_normals(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut weld: HashMap<[i64; 3], usize> = HashMap::new();
-    let slot: Vec<usize> = vertices
-        .iter()
-        .map(|v| {
-            let n = weld.len();
-            let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
-            *weld.entry(cell).or_insert(n)
-        })
-        .collect();
-    let mut sum = vec![Vec3::ZERO; weld.len()];
+    welded_normals(vertices, triangles, &Weld::of(vertices))
+}
+
+/// [`vertex_normals`] with a given welding (a character's first frame's, for all its frames:
+/// `shaders/skin.wgsl` sums the same on the GPU).
+pub fn welded_normals(vertices: &[Vec3], triangles: &[[u32; 3]], weld: &Weld) -> Vec<Vec3> {
+    let mut sum = vec![Vec3::ZERO; weld.slots];
     for t in triangles {
         let [a, b, c] = corners(vertices, *t);
         let n = (b - a).cross(c - a);
         for &i in t {
-            sum[slot[i as usize]] += n;
+            sum[weld.slot[i as usize] as usize] += n;
         }
     }
-    slot.iter().map(|&s| sum[s].normalize_or_zero()).collect()
+    (weld.slot.iter())
+        .map(|&s| sum[s as usize].normalize_or_zero())
+        .collect()
 }
 
 /// The normal at barycentric `(u, v)` of triangle `t` from its corners' smooth normals

@@ -2,8 +2,10 @@
 //! on one triangle of a mesh whose topology holds over the frames. The CPU reads the shell's
 //! positions per frame (`ShellCollider::frames`); the GPU backend places the shell particles
 //! itself from this binding and each frame's vertices, so a frame uploads the character's
-//! vertices (and their smooth normals), not its shell particles at every substep.
+//! vertices, not its shell particles at every substep (the GPU sums their smooth normals
+//! itself, from the welding of the first frame that the CPU uses for every frame too).
 
+use crate::character::shell::{welded_normals, Weld};
 use glam::Vec3;
 
 /// What the GPU needs to place a shell's particles from the mesh's vertices.
@@ -17,8 +19,10 @@ pub struct Skin {
     pub barycentric: Vec<[f32; 2]>,
     /// The mesh's vertices on every frame.
     pub vertices: Vec<Vec<Vec3>>,
-    /// Their smooth unit normals on every frame (`character::shell::vertex_normals`).
+    /// Their smooth unit normals on every frame (`character::shell::welded_normals`).
     pub normals: Vec<Vec<Vec3>>,
+    /// The vertices welded for those normals, as on the first frame.
+    pub weld: Weld,
 }
 
 impl Skin {
@@ -28,15 +32,17 @@ impl Skin {
         triangles: &[[u32; 3]],
         frames: &[Vec<Vec3>],
     ) -> Skin {
+        let weld = frames.first().map(|f| Weld::of(f)).unwrap_or_default();
         Skin {
             triangles: triangles.to_vec(),
             particle_triangle: shell.triangle.clone(),
             barycentric: shell.barycentric.clone(),
             normals: frames
                 .iter()
-                .map(|f| crate::character::shell::vertex_normals(f, triangles))
+                .map(|f| welded_normals(f, triangles, &weld))
                 .collect(),
             vertices: frames.to_vec(),
+            weld,
         }
     }
 

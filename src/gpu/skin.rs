@@ -1,24 +1,25 @@
 //! Characters' shells placed on the GPU (`shaders/skin.wgsl`): a moving character whose mesh
 //! keeps its topology has a [`Skin`](crate::collide::skin::Skin), each shell particle bound to a
-//! triangle. The GPU keeps the binding, and a window of two character frames (vertices and
-//! their smooth normals); each frame uploads only the character frames it reaches that the
-//! window lacks (usually one: 868 vertices for the mannequin, 28 KB, against 18.7 MB of shell
+//! triangle. The GPU keeps the binding, the mesh's triangles and welding, and a window of two
+//! character frames' vertices; each frame uploads only the character frames it reaches that the
+//! window lacks (usually one: P's mannequin, 5 040 vertices, 81 KB, against 18.7 MB of shell
 //! particles and grids at every substep before), and a few words per substep saying where it
-//! starts and ends. One compute pass then places every substep's shell particles and builds its
-//! grid, before the frame's simulation pass reads them: no CPU work per substep.
+//! starts and ends. One compute pass then sums the frames' smooth normals, places every
+//! substep's shell particles and builds its grid, before the frame's simulation pass reads
+//! them: no CPU work per substep.
 
 use super::buffers::ContactGroup;
 use crate::collide::shell::frame_weight;
 use crate::sim::Simulation;
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 /// The kernel file.
 pub const SOURCE: &str = include_str!("../../shaders/skin.wgsl");
 
 /// Entry points, in the order a frame runs them.
-pub const ENTRIES: [&str; 5] = [
+pub const ENTRIES: [&str; 6] = [
+    "skin_normals",
     "skin_clear",
     "skin_place",
     "skin_scan",
@@ -27,18 +28,26 @@ pub const ENTRIES: [&str; 5] = [
 ];
 
 /// The WGSL names of the bindings, in binding order (`tests/shaders.rs` checks them).
-pub const BINDINGS: [&str; 10] = [
+pub const BINDINGS: [&str; 15] = [
     "skin",
     "skin_info",
     "skin_time",
     "corners",
     "barycentric",
     "window",
+    "mesh_triangles",
+    "vertex_slot",
+    "slot_start",
+    "slot_faces",
     "shell_particle",
     "shell_grid",
     "keys",
     "cursor",
+    "slot_normal",
 ];
+
+/// Bindings 1 to this one are read-only storage (0 is the uniform, the rest read-write).
+const LAST_READ_ONLY: u32 = 9;
 
 /// Constants of a frame's placing (WGSL `SkinFrame`).
 #[repr(C)]
@@ -65,7 +74,13 @@ pub struct GpuSkinInfo {
     pub window: u32,
     pub vertices: u32,
     pub cursor: u32,
-    pub pad: [u32; 3],
+    pub triangles: u32,
+    pub vertex: u32,
+    pub weld: u32,
+    pub slots: u32,
+    pub faces: u32,
+    pub normals: u32,
+    pub pad: u32,
 }
 
 /// Where one substep starts and ends for one shell (WGSL `SkinTime`): window slots and weights.
@@ -109,7 +124,7 @@ impl SkinKernels {
             ty: wgpu::BindingType::Buffer {
                 ty: match binding {
                     0 => wgpu::BufferBindingType::Uniform,
-                    1..=5 => wgpu::BufferBindingType::Storage { read_only: true },
+                    1..=LAST_READ_ONLY => wgpu::BufferBindingType::Storage { read_only: true },
                     _ => wgpu::BufferBindingType::Storage { read_only: false },
                 },
                 has_dynamic_offset: false,
@@ -160,8 +175,8 @@ pub struct SkinMotion {
     /// Per resident shell, the character frame in each window slot.
     held: Vec<[Option<usize>; SLOTS]>,
     substeps: u32,
-    /// The most particles and buckets of a resident shell (the dispatches' width).
-    widest: (u32, u32),
+    /// The most particles, buckets and weld slots of a resident shell (the dispatches' width).
+    widest: (u32, u32, u32),
 }
 
 /// Shells the GPU places itself: moving ones bound to a mesh (the rest are uploaded from the
@@ -202,12 +217,14 @@ impl SkinMotion {
         let mut resident = Vec::new();
         let (mut bound, mut window, mut cursor) = (0u32, 0u32, 0u32);
         let (mut corners, mut barycentric) = (Vec::new(), Vec::new());
+        let mut mesh = Mesh::default();
         for (i, on) in placed_on_gpu(sim).into_iter().enumerate() {
             let (Some(skin), true) = (&sim.shells[i].skin, on) else {
                 continue;
             };
             let shell = contact.shells[i];
             let vertices = skin.vertex_count() as u32;
+            let at = mesh.add(skin);
             resident.push((
                 i,
                 GpuSkinInfo {
@@ -220,13 +237,19 @@ impl SkinMotion {
                     window,
                     vertices,
                     cursor,
-                    pad: [0; 3],
+                    triangles: at.triangles,
+                    vertex: at.vertex,
+                    weld: at.weld,
+                    slots: skin.weld.slots as u32,
+                    faces: at.faces,
+                    normals: at.normals,
+                    pad: 0,
                 },
             ));
             corners.extend(skin.corners());
             barycentric.extend_from_slice(&skin.barycentric);
             bound += shell.count;
-            window += SLOTS as u32 * 2 * vertices;
+            window += SLOTS as u32 * vertices;
             cursor += shell.table + 1;
         }
         if resident.is_empty() {
@@ -270,6 +293,27 @@ impl SkinMotion {
             U::STORAGE,
         );
         let window = empty("window", 16 * window as u64, refreshed);
+        let triangles = buffer(
+            "mesh_triangles",
+            bytemuck::cast_slice(&mesh.triangles),
+            U::STORAGE,
+        );
+        let vertex_slot = buffer(
+            "vertex_slot",
+            bytemuck::cast_slice(&mesh.vertex_slot),
+            U::STORAGE,
+        );
+        let slot_start = buffer(
+            "slot_start",
+            bytemuck::cast_slice(&mesh.slot_start),
+            U::STORAGE,
+        );
+        let slot_faces = buffer(
+            "slot_faces",
+            bytemuck::cast_slice(&mesh.slot_faces),
+            U::STORAGE,
+        );
+        let slot_normal = empty("slot_normal", 16 * mesh.normals as u64, U::STORAGE);
         let keys = empty("keys", 4 * (substeps * bound) as u64, U::STORAGE);
         let cursors = empty("cursor", 4 * (substeps * cursor) as u64, U::STORAGE);
         let resources = [
@@ -279,10 +323,15 @@ impl SkinMotion {
             &corners,
             &barycentric,
             &window,
+            &triangles,
+            &vertex_slot,
+            &slot_start,
+            &slot_faces,
             &contact.shell_particle,
             &contact.shell_grid,
             &keys,
             &cursors,
+            &slot_normal,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = (resources.iter().enumerate())
             .map(|(binding, b)| wgpu::BindGroupEntry {
@@ -295,7 +344,9 @@ impl SkinMotion {
             layout: &kernels.layout,
             entries: &entries,
         });
-        let widest = (infos.iter()).fold((0, 0), |(c, t), i| (c.max(i.count), t.max(i.table + 1)));
+        let widest = (infos.iter()).fold((0, 0, 0), |(c, t, w), i| {
+            (c.max(i.count), t.max(i.table + 1), w.max(i.slots))
+        });
         Some(SkinMotion {
             group,
             pipelines: kernels.pipelines.clone(),
@@ -329,8 +380,9 @@ impl SkinMotion {
                 let mut slot = |frame: usize| {
                     let at = frame % SLOTS;
                     if self.held[r][at] != Some(frame) {
-                        let bytes = window_frame(&skin.vertices[frame], &skin.normals[frame]);
-                        let offset = 16 * (info.window + at as u32 * 2 * info.vertices) as u64;
+                        let bytes: Vec<glam::Vec4> =
+                            skin.vertices[frame].iter().map(|v| v.extend(0.0)).collect();
+                        let offset = 16 * (info.window + at as u32 * info.vertices) as u64;
                         queue.write_buffer(&self.window, offset, bytemuck::cast_slice(&bytes));
                         uploaded += 16 * bytes.len() as u64;
                         self.held[r][at] = Some(frame);
@@ -366,32 +418,69 @@ impl SkinMotion {
         })
     }
 
-    /// Records the pass that places every substep's shell particles and builds their grids.
+    /// Records the pass that sums the window's normals, places every substep's shell particles
+    /// and builds their grids.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("drape skin"),
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &self.group, &[]);
-        let (particles, buckets) = self.widest;
+        let (particles, buckets, slots) = self.widest;
         let r = self.resident.len() as u32;
-        let widths = [
-            groups(buckets),
-            groups(particles),
-            1,
-            groups(particles),
-            groups(buckets),
+        // (x, y) per entry point: the normals per window slot, the rest per substep.
+        let s = self.substeps;
+        let sizes = [
+            (groups(slots), SLOTS as u32),
+            (groups(buckets), s),
+            (groups(particles), s),
+            (1, s),
+            (groups(particles), s),
+            (groups(buckets), s),
         ];
-        for (pipeline, x) in self.pipelines.iter().zip(widths) {
+        for (pipeline, (x, y)) in self.pipelines.iter().zip(sizes) {
             pass.set_pipeline(pipeline);
-            pass.dispatch_workgroups(x, self.substeps, r);
+            pass.dispatch_workgroups(x, y, r);
         }
     }
 }
 
-/// One character frame as the window holds it: its vertices, then their normals.
-fn window_frame(vertices: &[Vec3], normals: &[Vec3]) -> Vec<glam::Vec4> {
-    (vertices.iter().chain(normals))
-        .map(|v| v.extend(0.0))
-        .collect()
+/// The resident shells' meshes as the normals kernel reads them, one after another.
+#[derive(Default)]
+struct Mesh {
+    triangles: Vec<[u32; 4]>,
+    vertex_slot: Vec<u32>,
+    slot_start: Vec<u32>,
+    slot_faces: Vec<u32>,
+    /// Slot normals of all shells' two window frames.
+    normals: u32,
+}
+
+/// Where one shell's mesh starts in [`Mesh`]'s tables.
+struct MeshAt {
+    triangles: u32,
+    vertex: u32,
+    weld: u32,
+    faces: u32,
+    normals: u32,
+}
+
+impl Mesh {
+    fn add(&mut self, skin: &crate::collide::skin::Skin) -> MeshAt {
+        let at = MeshAt {
+            triangles: self.triangles.len() as u32,
+            vertex: self.vertex_slot.len() as u32,
+            weld: self.slot_start.len() as u32,
+            faces: self.slot_faces.len() as u32,
+            normals: self.normals,
+        };
+        let (start, faces) = skin.weld.slot_faces(&skin.triangles);
+        self.triangles
+            .extend(skin.triangles.iter().map(|&[a, b, c]| [a, b, c, 0]));
+        self.vertex_slot.extend_from_slice(&skin.weld.slot);
+        self.slot_start.extend(start);
+        self.slot_faces.extend(faces);
+        self.normals += SLOTS as u32 * skin.weld.slots as u32;
+        at
+    }
 }
