@@ -91,7 +91,7 @@ struct ShellInfo {
     radius: f32,               // shell particle radius [m]
     friction: f32,
     cell: f32,                 // grid cell width [m]
-    flags: u32,                // bit 0: swept test on; bit 1: normals present
+    flags: u32,                // bit 0: swept test on; bit 1: normals present; bit 2: never moves
 }
 
 // A shell particle at the end of a substep: position, motion over it, skin normal.

@@ -13,7 +13,8 @@ fn shell_bucket(c: vec3<i32>, table: u32) -> u32 {
     return bitcast<u32>(h) & (table - 1u);
 }
 
-// Where substep `substep`'s data of shell `sh` starts: particles, grid.
+// Where substep `substep`'s data of shell `sh` starts: particles, grid (a shell that never
+// moves has its data in substep 0's share only).
 struct ShellAt {
     info: ShellInfo,
     particles: u32,
@@ -22,10 +23,11 @@ struct ShellAt {
 
 fn shell_at(s: u32, substep: u32) -> ShellAt {
     let info = shell_info[s];
+    let k = select(substep, 0u, (info.flags & 4u) != 0u);
     return ShellAt(
         info,
-        substep * contacts.shell_stride + info.first,
-        substep * contacts.grid_stride + info.grid,
+        k * contacts.shell_stride + info.first,
+        k * contacts.grid_stride + info.grid,
     );
 }
 

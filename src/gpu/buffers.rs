@@ -426,7 +426,9 @@ fn shell_layout(sim: &Simulation) -> (Vec<GpuShellInfo>, u32, u32) {
             radius: s.radius,
             friction: s.friction,
             cell: s.cell_for(reach),
-            flags: s.swept as u32 | ((!s.normals.is_empty()) as u32) << 1,
+            flags: s.swept as u32
+                | ((!s.normals.is_empty()) as u32) << 1
+                | (s.is_static() as u32) << 2,
         });
         shell_stride += count;
         grid_stride += table + 1 + count;

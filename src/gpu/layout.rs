@@ -88,7 +88,8 @@ pub struct GpuShellInfo {
     pub radius: f32,
     pub friction: f32,
     pub cell: f32,
-    /// Bit 0: swept test on; bit 1: normals present.
+    /// Bit 0: swept test on; bit 1: normals present; bit 2: never moves (its data sits in
+    /// substep 0's share only).
     pub flags: u32,
 }
 

@@ -330,6 +330,8 @@ impl GpuSimulation {
         shell: usize,
     ) -> Result<crate::collide::shell::ShellSnapshot> {
         let (c, info) = (&self.contact, self.contact.shells[shell]);
+        // A shell that never moves sits in substep 0's share only.
+        let substep = if info.flags & 4 != 0 { 0 } else { substep };
         let first = (substep * c.shell_stride + info.first) as u64;
         let particles = self.read_back(&c.shell_particle, 48 * first, 48 * info.count as u64)?;
         let grid = (substep * c.grid_stride + info.grid) as u64;
@@ -401,6 +403,10 @@ impl GpuSimulation {
                 let Some((particles, grid)) = snapshot else {
                     continue;
                 };
+                // A shell that never moves is read from substep 0's share (`shell_at`).
+                if substep > 0 && info.flags & 4 != 0 {
+                    continue;
+                }
                 let at = substep as u64 * self.contact.shell_stride as u64 + info.first as u64;
                 upload(
                     &self.contact.shell_particle,
