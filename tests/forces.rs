@@ -2,7 +2,8 @@
 //! pressure against its weight predicts, tan φ = ρ C_n U² / (2 m g) (m: mass per area), for a
 //! light and a strong wind; keyframed wind starts when its keys say; gusts are deterministic and
 //! change with their seed; an attractor pulls and a repeller pushes; a bake with wind resumes bit
-//! for bit; the GPU backend blows and pulls as the CPU does; a bad field is named.
+//! for bit; the GPU backend blows and pulls as the CPU does; without integration the fields move
+//! nothing on either backend; a bad field is named.
 
 mod common;
 
@@ -192,4 +193,39 @@ fn a_bad_force_field_is_named() {
     let err = common::stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("forces[0].density"), "{err}");
+}
+
+#[test]
+fn without_integration_the_fields_move_nothing_on_either_backend() {
+    // `integrator: none` (only the solver moves particles, as scene E): no prediction, so no
+    // acceleration either; the GPU backend skips its force stage the same way.
+    let text = |forces: &str| {
+        format!(
+            r#"{{ "frames": 3, "integrator": "none", "forces": {forces},
+                  "garments": [{{ "resolution": [8, 8], "pins": [[0, 0]] }}] }}"#
+        )
+    };
+    let build = |forces: &str| {
+        let scene = common::scene(&text(forces));
+        drape::bake::simulation(&scene, Vec::new(), "<test scene>")
+            .unwrap()
+            .sim
+    };
+    let wind = r#"[{ "kind": "wind", "velocity": [0, 0, 2] }]"#;
+    let (mut still, mut blown) = (build("[]"), build(wind));
+    for _ in 0..3 {
+        still.step_frame();
+        blown.step_frame();
+    }
+    assert_eq!(still.state.positions, blown.state.positions);
+    let Some(ctx) = common::gpu_context() else {
+        return;
+    };
+    let mut on_gpu = build(wind);
+    let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    for _ in 0..3 {
+        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+    }
+    let gap = common::largest_gap(&blown, &on_gpu);
+    assert!(gap <= 1e-6, "CPU and GPU differ by {gap} m");
 }

@@ -491,6 +491,8 @@ impl GpuSimulation {
                             );
                         }
                     }
+                    // Without integration nothing is predicted, fields or not (as on the CPU).
+                    Stage::Forces if !integrating => {}
                     Stage::Forces => {
                         let fields = self.fields.as_ref().expect("scheduled with force fields");
                         let slot = self.state.finish_slots + substep;
@@ -538,7 +540,7 @@ impl GpuSimulation {
                         } else {
                             dispatch(&mut pass, &k.finish_static, PARAMS_NEXT, n, GROUP);
                         }
-                        if self.fields.is_some() {
+                        if self.fields.is_some() && integrating {
                             let slot = self.state.finish_slots + substep;
                             dispatch(&mut pass, &k.field_work_done, slot, n, GROUP);
                         }
