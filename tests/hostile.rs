@@ -867,3 +867,39 @@ fn a_gpu_bake_prints_no_complaint_of_the_graphics_stack() {
         other => panic!("exit {other:?}: {err}"),
     }
 }
+
+#[test]
+fn a_gpu_bake_too_large_for_the_adapter_is_refused_not_crashed() {
+    // A character's shell takes one share of the GPU's buffers per substep: the stool's 4 477
+    // particles at 100 000 substeps are 21 GB, past any adapter's buffer size. The bake stops
+    // before simulating with an error naming the GPU and the substeps (it panicked inside wgpu
+    // before), and leaves nothing behind; without an adapter it fails naming the GPU too.
+    let dir = temp_dir();
+    let d = dir.path();
+    let stool = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/characters/mannequin/stool.obj"
+    );
+    std::fs::write(
+        d.join("scene.json"),
+        format!(
+            r#"{{ "frames": 1, "substeps": 100000, "solver": {{ "iterations": 1 }},
+                  "garments": [{{ "resolution": [4, 4], "position": [0, 0.7, -0.46] }}],
+                  "characters": [{{ "name": "stool", "file": {stool:?} }}] }}"#
+        ),
+    )
+    .unwrap();
+    let out = run(
+        d,
+        &["bake", "scene.json", "--out", "out", "--backend", "gpu"],
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("GPU") && !err.contains("panicked"), "{err}");
+    // With an adapter (lavapipe in CI) the reason is the shells' size.
+    assert!(
+        err.contains("substeps") || err.contains("no GPU") || err.contains("adapter"),
+        "{err}"
+    );
+    assert!(!d.join("out").exists() && leftovers(d).is_empty(), "{err}");
+}

@@ -68,7 +68,29 @@ fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
             ),
         });
     }
+    // Characters' shells take one share per substep (particles, 48 bytes each, and grids).
+    let shell_particles: usize = sim.shells.iter().map(|s| s.most_particles()).sum();
+    let shell_bytes = shell_particles as u64 * 48 * sim.substeps as u64;
+    if shell_bytes > limit as u64 {
+        return Err(Error::Gpu {
+            reason: format!(
+                "characters' shells ({shell_particles} particles) at {} substeps per frame need {} MiB buffers; {} allows {} MiB",
+                sim.substeps,
+                shell_bytes >> 20,
+                ctx.adapter.name,
+                limit >> 20
+            ),
+        });
+    }
     let dispatch_limit = ctx.device.limits().max_compute_workgroups_per_dimension as usize;
+    if !sim.shells.is_empty() && sim.substeps as usize > dispatch_limit {
+        return Err(Error::Gpu {
+            reason: format!(
+                "characters' shells are placed for every substep in one dispatch: {} substeps per frame are more than the {dispatch_limit} workgroups {} runs per dispatch",
+                sim.substeps, ctx.adapter.name
+            ),
+        });
+    }
     if n.max(model.springs.len()).div_ceil(GROUP as usize) > dispatch_limit {
         return Err(Error::Gpu {
             reason: format!(
