@@ -36,7 +36,7 @@ pub fn load_characters(
         let path = scene.character_path(i);
         let options = spec.options();
         let frames = scene.frames as usize + 1;
-        let character = Character::load(&path, &options, scene.fps, frames)?;
+        let mut character = Character::load(&path, &options, scene.fps, frames)?;
         let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
         warnings.extend(character.size_warning(spec.scale));
         character
@@ -46,9 +46,8 @@ pub fn load_characters(
                 field: format!("characters[{i}].radius"),
                 reason,
             })?;
-        // Normals ride the skin with the shell, when one shell serves every frame.
-        let mut normals = Vec::new();
-        let mut skin = None;
+        // One shell bound to the skin serves every frame when the topology holds.
+        let mut binding = None;
         let (positions, cache) = if character.same_topology() {
             let files = sequence_files(&path)?;
             let hash = input_hash(
@@ -84,12 +83,7 @@ pub fn load_characters(
                     (c, "built")
                 }
             };
-            let triangles = character.triangles_of(0);
-            let bound = Skin::new(&c.shell, triangles, &character.frames);
-            normals = (0..character.frames.len())
-                .map(|f| bound.particle_normals(f))
-                .collect();
-            skin = Some(std::sync::Arc::new(bound));
+            binding = Some(c.shell);
             (c.frames, how)
         } else {
             (
@@ -128,8 +122,16 @@ pub fn load_characters(
             None
         };
         let mut shell = ShellCollider::new(name, spec.radius, spec.friction, positions);
-        shell.normals = normals;
-        shell.skin = skin;
+        if let Some(binding) = binding {
+            // Normals ride the skin with the shell; the frames move into the skin (the GPU
+            // places the shell from them).
+            let triangles = character.triangles_of(0).to_vec();
+            let skin = Skin::new(&binding, triangles, std::mem::take(&mut character.frames));
+            shell.normals = (0..skin.vertices.len())
+                .map(|f| skin.particle_normals(f))
+                .collect();
+            shell.skin = Some(std::sync::Arc::new(skin));
+        }
         out.push(LoadedCharacter {
             shell,
             report,

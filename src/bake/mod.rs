@@ -253,6 +253,13 @@ fn run(
     }
     let kind = backend_kind(scene, targets.is_some(), &mut warnings)?;
     let mut backend = Backend::for_scene(kind, &sim, &mut warnings)?;
+    if !backend.is_gpu() {
+        // Only the GPU places shells from their meshes; the CPU reads the shells' own frames
+        // (P: 15 MB of the mannequin's vertices no longer held).
+        for s in &mut sim.shells {
+            s.skin = None;
+        }
+    }
     let vertices = meshes.info.iter().map(|m| m.vertices as u64).sum();
     check_disk(scene, vertices, &options.scene_file, &options.out)?;
     // While the GPU simulates the CPU is free to write; on the CPU a writer thread would only

@@ -19,37 +19,32 @@ pub struct Skin {
     pub barycentric: Vec<[f32; 2]>,
     /// The mesh's vertices on every frame.
     pub vertices: Vec<Vec<Vec3>>,
-    /// Their smooth unit normals on every frame (`character::shell::welded_normals`).
-    pub normals: Vec<Vec<Vec3>>,
-    /// The vertices welded for those normals, as on the first frame.
+    /// The vertices welded for the smooth normals, as on the first frame.
     pub weld: Weld,
 }
 
 impl Skin {
-    /// The binding of `shell` to a mesh of `triangles` over `frames` of vertices.
+    /// The binding of `shell` to a mesh of `triangles` over `frames` of vertices (kept).
     pub fn new(
         shell: &crate::character::Shell,
-        triangles: &[[u32; 3]],
-        frames: &[Vec<Vec3>],
+        triangles: Vec<[u32; 3]>,
+        frames: Vec<Vec<Vec3>>,
     ) -> Skin {
         let weld = frames.first().map(|f| Weld::of(f)).unwrap_or_default();
         Skin {
-            triangles: triangles.to_vec(),
+            triangles,
             particle_triangle: shell.triangle.clone(),
             barycentric: shell.barycentric.clone(),
-            normals: frames
-                .iter()
-                .map(|f| welded_normals(f, triangles, &weld))
-                .collect(),
-            vertices: frames.to_vec(),
+            vertices: frames,
             weld,
         }
     }
 
-    /// The shell particles' unit normals on `frame` (`Shell::normals`, from the stored vertex
-    /// normals).
+    /// The shell particles' unit normals on `frame` (`Shell::normals`, with the first frame's
+    /// welding).
     pub fn particle_normals(&self, frame: usize) -> Vec<Vec3> {
-        let (vertices, smooth) = (&self.vertices[frame], &self.normals[frame]);
+        let vertices = &self.vertices[frame];
+        let smooth = &welded_normals(vertices, &self.triangles, &self.weld);
         self.particle_triangle
             .iter()
             .zip(&self.barycentric)
