@@ -7,6 +7,10 @@ const SHELL_FOUND: u32 = 512u;
 const NEARBY: u32 = 16u;
 const NO_ENTRY: u32 = 0xffffffffu;
 const NO_LIST: u32 = 0xffffffffu;
+// ShellInfo.flags bits (gpu::layout::shell_flags).
+const SHELL_SWEPT: u32 = 1u;
+const SHELL_NORMALS: u32 = 2u;
+const SHELL_STATIC: u32 = 4u;
 
 fn shell_bucket(c: vec3<i32>, table: u32) -> u32 {
     let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
@@ -23,7 +27,7 @@ struct ShellAt {
 
 fn shell_at(s: u32, substep: u32) -> ShellAt {
     let info = shell_info[s];
-    let k = select(substep, 0u, (info.flags & 4u) != 0u);
+    let k = select(substep, 0u, (info.flags & SHELL_STATIC) != 0u);
     return ShellAt(
         info,
         k * contacts.shell_stride + info.first,
@@ -114,7 +118,7 @@ fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>
     }
     var push: vec3<f32>;
     let normal = q.normal.xyz;
-    if ((at.info.flags & 2u) != 0u && dot(d, normal) < 0.0) {
+    if ((at.info.flags & SHELL_NORMALS) != 0u && dot(d, normal) < 0.0) {
         let along = d - normal * dot(d, normal);
         let height = sqrt(max(reach * reach - dot(along, along), 0.0));
         push = normal * (height - dot(d, normal));
@@ -199,7 +203,7 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
     let x3 = x.xyz;
     let d = delta.xyz;
     var p = x3 + d;
-    if ((at.info.flags & 3u) == 3u && length(d) <= 64.0 * at.info.cell) {
+    if ((at.info.flags & (SHELL_SWEPT | SHELL_NORMALS)) == (SHELL_SWEPT | SHELL_NORMALS) && length(d) <= 64.0 * at.info.cell) {
         // The cells around the path (HashGrid::near_segment), gathered once for both tests.
         var found: array<u32, 512>;
         var count = 0u;

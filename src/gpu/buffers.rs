@@ -6,7 +6,7 @@
 
 use super::kernels::Kernels;
 use super::layout::{
-    GpuCollider, GpuContacts, GpuParams, GpuParticle, GpuShellInfo, PARAMS_STRIDE,
+    shell_flags, GpuCollider, GpuContacts, GpuParams, GpuParticle, GpuShellInfo, PARAMS_STRIDE,
 };
 use crate::scene::SolverKind;
 use crate::sim::Simulation;
@@ -408,6 +408,15 @@ pub struct ContactGroup {
     pub group: wgpu::BindGroup,
 }
 
+/// `bit` when `on`.
+fn flag(on: bool, bit: u32) -> u32 {
+    if on {
+        bit
+    } else {
+        0
+    }
+}
+
 /// Each shell's place in the per-substep shell buffers, and the strides of a substep's
 /// particles and grid.
 fn shell_layout(sim: &Simulation) -> (Vec<GpuShellInfo>, u32, u32) {
@@ -426,9 +435,9 @@ fn shell_layout(sim: &Simulation) -> (Vec<GpuShellInfo>, u32, u32) {
             radius: s.radius,
             friction: s.friction,
             cell: s.cell_for(reach),
-            flags: s.swept as u32
-                | ((!s.normals.is_empty()) as u32) << 1
-                | (s.is_static() as u32) << 2,
+            flags: flag(s.swept, shell_flags::SWEPT)
+                | flag(!s.normals.is_empty(), shell_flags::NORMALS)
+                | flag(s.is_static(), shell_flags::STATIC),
         });
         shell_stride += count;
         grid_stride += table + 1 + count;

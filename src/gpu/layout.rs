@@ -93,6 +93,16 @@ pub struct GpuShellInfo {
     pub flags: u32,
 }
 
+/// `GpuShellInfo::flags` bits (`shells.wgsl` tests the same).
+pub mod shell_flags {
+    /// The swept test is on.
+    pub const SWEPT: u32 = 1;
+    /// The shell has normals.
+    pub const NORMALS: u32 = 2;
+    /// The shell never moves: its data sits in substep 0's share only.
+    pub const STATIC: u32 = 4;
+}
+
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuParticle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuCollider>() == 80);
@@ -112,7 +122,7 @@ pub mod collider_kind {
 
 /// Constants the kernels share with the Rust code, by their WGSL name: `tests/shaders.rs`
 /// checks that every one is declared in some kernel with this value.
-pub const SHARED_CONSTANTS: [(&str, f64); 12] = [
+pub const SHARED_CONSTANTS: [(&str, f64); 15] = [
     ("NEARBY", crate::collide::shell::NEARBY as f64),
     ("SHELL_FOUND", crate::collide::shell::SHELL_FOUND as f64),
     ("SKIP_STEPS", crate::collide::particles::SKIP_STEPS as f64),
@@ -125,6 +135,9 @@ pub const SHARED_CONSTANTS: [(&str, f64); 12] = [
     ("KIND_FUNNEL", collider_kind::FUNNEL as f64),
     ("KIND_WEDGE", collider_kind::WEDGE as f64),
     ("GUST_WAVES", crate::sim::forces::GPU_WAVES as f64),
+    ("SHELL_SWEPT", shell_flags::SWEPT as f64),
+    ("SHELL_NORMALS", shell_flags::NORMALS as f64),
+    ("SHELL_STATIC", shell_flags::STATIC as f64),
 ];
 
 /// The force kernels' structs (`shaders/forces.wgsl`) with the sizes of their Rust mirrors.

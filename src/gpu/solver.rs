@@ -9,6 +9,7 @@
 use super::buffers::{ContactGroup, ResidualGroup, StateGroup, PARAMS_COLOUR, PARAMS_NEXT};
 use super::context::GpuContext;
 use super::kernels::Kernels;
+use super::layout::shell_flags::STATIC;
 use super::layout::{GpuCollider, PARAMS_STRIDE};
 use crate::collide::Shape;
 use crate::error::{Error, Result};
@@ -261,12 +262,12 @@ impl GpuSimulation {
         // simulation's clock).
         let driven = sim.drive_frame(!self.static_shells_uploaded, &self.placed_on_gpu);
         self.uploaded_last_frame = self.upload(&driven);
+        // The frame's first substep, counted from the bake's start.
+        let first = sim.elapsed_substeps() - sim.substeps as u64;
         if let Some(skin) = &mut self.skin {
-            let first = sim.elapsed_substeps() - sim.substeps as u64;
             self.uploaded_last_frame += skin.upload(&self.ctx.queue, sim, first);
         }
         if let Some(fields) = &self.fields {
-            let first = sim.elapsed_substeps() - sim.substeps as u64;
             self.uploaded_last_frame += fields.upload(&self.ctx.queue, sim, first);
         }
         let encoder = self.record_frame(sim);
@@ -353,7 +354,7 @@ impl GpuSimulation {
     ) -> Result<crate::collide::shell::ShellSnapshot> {
         let (c, info) = (&self.contact, self.contact.shells[shell]);
         // A shell that never moves sits in substep 0's share only.
-        let substep = if info.flags & 4 != 0 { 0 } else { substep };
+        let substep = if info.flags & STATIC != 0 { 0 } else { substep };
         let first = (substep * c.shell_stride + info.first) as u64;
         let particles = self.read_back(&c.shell_particle, 48 * first, 48 * info.count as u64)?;
         let grid = (substep * c.grid_stride + info.grid) as u64;
@@ -419,16 +420,13 @@ impl GpuSimulation {
             );
         }
         // Each shell's entries of each substep where the kernels read them; a shell that never
-        // moves only with the first frame (its entries stay for every later one).
+        // moves once, into the first substep's share, with the first frame (the kernels read
+        // it there in every substep of every frame).
         for (substep, shells) in driven.shells.iter().enumerate() {
             for (info, snapshot) in self.contact.shells.iter().zip(shells) {
                 let Some((particles, grid)) = snapshot else {
                     continue;
                 };
-                // A shell that never moves is read from substep 0's share (`shell_at`).
-                if substep > 0 && info.flags & 4 != 0 {
-                    continue;
-                }
                 let at = substep as u64 * self.contact.shell_stride as u64 + info.first as u64;
                 upload(
                     &self.contact.shell_particle,

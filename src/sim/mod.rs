@@ -69,6 +69,9 @@ pub struct Simulation {
     /// Each particle's clearance from the quiet colliders at the start of the substep (see
     /// [`Stages::contact_pass`]), kept between a substep's collision passes.
     clearance: Vec<f32>,
+    /// Which colliders are quiet in the coming substep ([`Collider::is_quiet`]; kept between
+    /// substeps, so none allocates).
+    quiet: Vec<bool>,
     /// Particles following animated targets.
     pub attachments: attach::Attachments,
     /// Frames per second (the clock of characters and keyframes).
@@ -160,6 +163,7 @@ impl Simulation {
             pushes,
             nearby: Vec::new(),
             clearance: Vec::new(),
+            quiet: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
@@ -423,7 +427,7 @@ impl Simulation {
     /// the end of each substep of the next frame, substep by substep; advances the clock by a
     /// frame as if it ran, leaving the colliders in their last pose: for a backend that runs
     /// the frame elsewhere (the GPU) and copies the state back. `static_shells`: include the
-    /// shells that never move too (the GPU needs them once). The shells marked in
+    /// shells that never move too, with the first substep (the GPU needs them once). The shells marked in
     /// `placed_elsewhere` (the GPU places them from their skins) have no snapshots: they are
     /// moved over the whole frame at once.
     pub fn drive_frame(&mut self, static_shells: bool, placed_elsewhere: &[bool]) -> DrivenFrame {
@@ -437,14 +441,16 @@ impl Simulation {
             .iter()
             .map(|a| self.state.positions[a.particle as usize].truncate())
             .collect();
-        for _ in 0..self.substeps {
+        for substep in 0..self.substeps {
             let start = std::time::Instant::now();
             self.advance_shells_but(placed_elsewhere);
             frame.shells.push(
                 (self.shells.iter().enumerate())
                     .map(|(i, s)| {
                         let elsewhere = placed_elsewhere.get(i) == Some(&true);
-                        let wanted = !elsewhere && (static_shells || !s.is_static());
+                        // A shell that never moves: once, with the first substep.
+                        let once = static_shells && substep == 0;
+                        let wanted = !elsewhere && (once || !s.is_static());
                         wanted.then(|| s.gpu_snapshot())
                     })
                     .collect(),
@@ -545,7 +551,9 @@ impl Simulation {
         };
         self.clearance.resize(clearance_len, f32::NEG_INFINITY);
         let clearance = Shared::new(&mut self.clearance);
-        let quiet: Vec<bool> = self.colliders.iter().map(Collider::is_quiet).collect();
+        self.quiet.clear();
+        self.quiet
+            .extend(self.colliders.iter().map(Collider::is_quiet));
         let model = &self.model;
         let recording = self.residuals.is_some();
         let residuals = Mutex::new(self.residuals.as_mut());
@@ -575,7 +583,7 @@ impl Simulation {
             pushes: self.particle_collisions.is_some().then_some(pushes),
             nearby,
             clearance,
-            quiet: &quiet,
+            quiet: &self.quiet,
             external: &self.external,
         };
         let solver = &self.solver;
@@ -702,7 +710,8 @@ pub struct DrivenFrame {
     /// Per substep: every collider in its pose at the end of that substep.
     pub colliders: Vec<Vec<Collider>>,
     /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`] (None for a shell
-    /// that never moves, unless asked for: the GPU keeps it from its first upload).
+    /// that never moves, unless asked for, then with the first substep only: the GPU keeps it
+    /// from its first upload; and None for a shell the GPU places itself).
     pub shells: Vec<Vec<Option<crate::collide::shell::ShellSnapshot>>>,
 }
 
