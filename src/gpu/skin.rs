@@ -284,35 +284,16 @@ impl SkinMotion {
         use wgpu::BufferUsages as U;
         let refreshed = U::STORAGE | U::COPY_DST;
         let uniform = buffer("skin", bytemuck::bytes_of(&frame), U::UNIFORM);
-        let info = buffer("skin_info", bytemuck::cast_slice(&infos), U::STORAGE);
         let times = empty("skin_time", 32 * (substeps * r) as u64, refreshed);
-        let corners = buffer("corners", bytemuck::cast_slice(&corners), U::STORAGE);
-        let barycentric = buffer(
-            "barycentric",
-            bytemuck::cast_slice(&barycentric),
-            U::STORAGE,
-        );
+        let read = |label: &str, bytes: &[u8]| buffer(label, bytes, U::STORAGE);
+        let corners = read("corners", bytemuck::cast_slice(&corners));
+        let barycentric = read("barycentric", bytemuck::cast_slice(&barycentric));
         let window = empty("window", 16 * window as u64, refreshed);
-        let triangles = buffer(
-            "mesh_triangles",
-            bytemuck::cast_slice(&mesh.triangles),
-            U::STORAGE,
-        );
-        let vertex_slot = buffer(
-            "vertex_slot",
-            bytemuck::cast_slice(&mesh.vertex_slot),
-            U::STORAGE,
-        );
-        let slot_start = buffer(
-            "slot_start",
-            bytemuck::cast_slice(&mesh.slot_start),
-            U::STORAGE,
-        );
-        let slot_faces = buffer(
-            "slot_faces",
-            bytemuck::cast_slice(&mesh.slot_faces),
-            U::STORAGE,
-        );
+        let triangles = read("mesh_triangles", bytemuck::cast_slice(&mesh.triangles));
+        let vertex_slot = read("vertex_slot", bytemuck::cast_slice(&mesh.vertex_slot));
+        let slot_start = read("slot_start", bytemuck::cast_slice(&mesh.slot_start));
+        let slot_faces = read("slot_faces", bytemuck::cast_slice(&mesh.slot_faces));
+        let info = read("skin_info", bytemuck::cast_slice(&infos));
         let slot_normal = empty("slot_normal", 16 * mesh.normals as u64, U::STORAGE);
         let keys = empty("keys", 4 * (substeps * bound) as u64, U::STORAGE);
         let cursors = empty("cursor", 4 * (substeps * cursor) as u64, U::STORAGE);
