@@ -337,6 +337,9 @@ fn the_gpu_places_a_moving_characters_shell_from_its_vertices() {
     );
     let scene = common::scene(&text);
     let (mut cpu, mut on_gpu, mut gpu) = on_both_backends(&scene, dir.path(), ctx);
+    // Every shell particle is compared: the CPU moves them all (a focused shell moves only
+    // those near the cloth, with the same cloth).
+    cpu.focus_enabled = false;
     let vertices = on_gpu.shells[0]
         .skin
         .as_ref()
@@ -381,6 +384,55 @@ fn the_gpu_places_a_moving_characters_shell_from_its_vertices() {
     assert!(
         lowest > 1.0,
         "the cloth fell past the shoulders to {lowest} m"
+    );
+}
+
+#[test]
+fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
+    // A small cloth landing on the shoulder of the mannequin raising its arms (about 15 000
+    // shell particles): the CPU moves and grids only the shell particles that can come near
+    // the cloth, and the cloth moves exactly as when every shell particle is moved.
+    let dir = common::temp_dir();
+    let text = scene_text(
+        r#"{ "name": "cloth", "resolution": [12, 12], "size": [0.3, 0.3], "position": [0.25, 1.58, 0] }"#,
+        "characters/mannequin/raise_arms",
+        30,
+    );
+    let scene = common::scene(&text);
+    let build = || {
+        let mut warnings = Vec::new();
+        let characters =
+            drape::bake::load_characters(&scene, &dir.path().join("cache"), &mut warnings).unwrap();
+        drape::bake::simulation(&scene, characters, "<test scene>")
+            .unwrap()
+            .sim
+    };
+    let (mut focused, mut whole) = (build(), build());
+    whole.focus_enabled = false;
+    let mut fewest = usize::MAX;
+    for frame in 0..scene.frames {
+        focused.step_frame();
+        whole.step_frame();
+        assert_eq!(
+            focused.state, whole.state,
+            "frame {frame}: the focus changed the cloth"
+        );
+        assert_eq!(whole.shells[0].focused(), None);
+        if let Some((active, all)) = focused.shells[0].focused() {
+            assert!(2 * active <= all, "{active} of {all} in focus");
+            fewest = fewest.min(active);
+        }
+    }
+    let all = whole.shells[0].particles();
+    eprintln!("focus: {fewest} of {all} shell particles at the least");
+    assert!(
+        fewest < all / 4,
+        "the focus left out little: {fewest} of {all}"
+    );
+    let lowest = (focused.export_positions().iter()).fold(f32::MAX, |m, p| m.min(p.y));
+    assert!(
+        lowest > 1.0,
+        "the cloth fell past the shoulder to {lowest} m"
     );
 }
 

@@ -14,6 +14,14 @@
 //! left to the end-point push, which pushes along the skin's normal once a particle is past a
 //! shell particle's tangent plane, so it never pushes cloth further into the body; cloth sliding
 //! over the skin never crosses it and is never stopped.
+//!
+//! On the CPU backend a large moving shell is *focused* each frame: only the shell particles
+//! whose path over the frame comes within two contact distances of where the garments can be
+//! meanwhile are moved and gridded (the garments' reach is kept on a coarse lattice,
+//! [`NearGarments`]; the simulation checks before each substep that no garment particle is
+//! about to leave it, and focuses again when one is). Every test looks only within two contact
+//! distances, so the frames are the same bits as without the focus; a cape on a running
+//! figure's head no longer pays for its legs.
 
 use glam::{IVec3, Vec3, Vec4};
 use rayon::prelude::*;
@@ -128,6 +136,108 @@ pub const SHELL_FOUND: usize = 512;
 /// A garment particle's [`NEARBY`] shell particles.
 pub type Nearby = [u32; NEARBY];
 
+/// Where the garments are, coarsely: a dense lattice of cells over the garments' box, each
+/// cell marked when it lies within some garment particle's own distance of it (a cube of cells
+/// around the particle's), so a point within that distance of a particle lies in a marked cell.
+pub struct NearGarments {
+    cell: f32,
+    /// The lattice's first cell and its size in cells.
+    origin: IVec3,
+    size: IVec3,
+    marked: Vec<bool>,
+}
+
+/// Cells along each side of [`NearGarments`]'s lattice at most (coarser cells beyond).
+const NEAR_CELLS: f32 = 128.0;
+
+impl NearGarments {
+    /// The cells within each point's own distance of it (`points`: position and distance), on
+    /// a lattice of cells at least `cell` wide.
+    pub fn new(points: &[(Vec3, f32)], cell: f32) -> NearGarments {
+        let (lo, hi) = points
+            .iter()
+            .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (p, d)| {
+                (lo.min(*p - *d), hi.max(*p + *d))
+            });
+        if points.is_empty() || !(lo.is_finite() && hi.is_finite()) {
+            // Nothing to be near, or nowhere sensible: every cell counts as marked.
+            return NearGarments {
+                cell: 1.0,
+                origin: IVec3::ZERO,
+                size: IVec3::ZERO,
+                marked: Vec::new(),
+            };
+        }
+        let cell = cell.max(1e-3).max((hi - lo).max_element() / NEAR_CELLS);
+        let origin = cell_index(lo, cell);
+        let size = cell_index(hi, cell) - origin + IVec3::ONE;
+        let mut marked = vec![false; (size.x * size.y * size.z) as usize];
+        for &(p, distance) in points {
+            let (a, b) = (
+                cell_index(p - distance, cell),
+                cell_index(p + distance, cell),
+            );
+            let (a, b) = (
+                (a - origin).max(IVec3::ZERO),
+                (b - origin).min(size - IVec3::ONE),
+            );
+            for z in a.z..=b.z {
+                for y in a.y..=b.y {
+                    let row = ((z * size.y + y) * size.x) as usize;
+                    marked[row + a.x as usize..=row + b.x as usize].fill(true);
+                }
+            }
+        }
+        NearGarments {
+            cell,
+            origin,
+            size,
+            marked,
+        }
+    }
+
+    /// True when some point of the box `lo..hi` may lie within a garment particle's distance
+    /// of it (a cell it overlaps is marked).
+    fn touches(&self, lo: Vec3, hi: Vec3) -> bool {
+        if self.marked.is_empty() {
+            return true;
+        }
+        let a = (cell_index(lo, self.cell) - self.origin).max(IVec3::ZERO);
+        let b = (cell_index(hi, self.cell) - self.origin).min(self.size - IVec3::ONE);
+        if a.cmpgt(b).any() {
+            return false;
+        }
+        if a == b {
+            return self.marked[((a.z * self.size.y + a.y) * self.size.x + a.x) as usize];
+        }
+        (a.z..=b.z).any(|z| {
+            (a.y..=b.y).any(|y| {
+                let row = ((z * self.size.y + y) * self.size.x) as usize;
+                self.marked[row + a.x as usize..=row + b.x as usize].contains(&true)
+            })
+        })
+    }
+}
+
+/// The shell particles a frame's substeps move and grid: those whose path over the rest of the
+/// frame comes within two contact distances of where the garments can be meanwhile. The others
+/// are far from every garment particle, so no test would find them (a grid walk, a nearby list
+/// or a penetration count sees only particles within two reaches): leaving them out changes no
+/// result, and a character's legs under a cape, or a body under a hood, cost nothing.
+#[derive(Clone, Debug, Default)]
+struct Focus {
+    /// Their indices, ascending.
+    active: Vec<u32>,
+    /// The fastest motion per substep of a particle left out (for the driven speed).
+    left_out_fastest: f32,
+    /// Set when the focus changed: the next substep interpolates every particle's start, since
+    /// those that joined were not moved while they were out.
+    changed: bool,
+    /// Each active particle's position, motion, normal and grid key for the current substep
+    /// (a buffer).
+    now: Vec<(Vec3, Vec3, Vec3, u32)>,
+}
+
 /// A character's shell as a collider.
 #[derive(Clone, Debug)]
 pub struct ShellCollider {
@@ -158,6 +268,9 @@ pub struct ShellCollider {
     before: Vec<Vec3>,
     /// The longest distance a shell particle moved over the current substep [m].
     fastest: f32,
+    /// On the CPU backend, the shell particles that can come near the garments this frame
+    /// (see [`ShellCollider::focus`]); None: all of them.
+    focus: Option<Focus>,
     /// The box around the shell particles at both ends of the current substep: a path whose
     /// box stays two reaches away meets none of them (the broad phase of `resolve`).
     bounds: (Vec3, Vec3),
@@ -168,12 +281,17 @@ pub struct ShellCollider {
 #[derive(Clone, Debug, Default)]
 struct HashGrid {
     cell: f32,
-    /// Start of each bucket in `items`; length = buckets + 1.
+    /// Start of each bucket in `items`; length = buckets + 1 (a prefix sum after a full
+    /// build, as the GPU reads it).
     start: Vec<u32>,
     items: Vec<u32>,
-    /// Buffers kept between builds: each point's bucket, each bucket's next free slot.
+    /// Each point's bucket (a buffer kept between builds).
     keys: Vec<u32>,
+    /// End of each bucket in `items` (its next free slot while building).
     next: Vec<u32>,
+    /// After a sparse build, the buckets it filled (the others are empty: start = end = 0);
+    /// None after a full build.
+    filled: Option<Vec<u32>>,
 }
 
 /// The bucket of cell `c` among a power-of-two number of `buckets` (wrapping 32-bit products,
@@ -217,8 +335,55 @@ impl HashGrid {
         self.keys = keys;
     }
 
+    /// [`Self::build_from_keys`] in time proportional to the points, not the buckets: only the
+    /// buckets the points fill are written (the others left empty), so a few thousand points
+    /// among a hundred thousand buckets cost a few thousand steps. Each bucket lists its points
+    /// in the same order as the full build; `start` is no prefix sum (not for the GPU).
+    fn build_sparse(&mut self, keys: &[u32], cell: f32, buckets: usize) {
+        self.cell = cell;
+        let mut filled = match self.filled.take() {
+            Some(f) if self.start.len() == buckets + 1 => f,
+            _ => {
+                self.start.clear();
+                self.start.resize(buckets + 1, 0);
+                self.next.clear();
+                self.next.resize(buckets + 1, 0);
+                Vec::new()
+            }
+        };
+        for &b in &filled {
+            self.start[b as usize] = 0;
+            self.next[b as usize] = 0;
+        }
+        filled.clear();
+        // Count into `next`, then give each filled bucket its place in `items`.
+        for &k in keys {
+            let count = &mut self.next[k as usize];
+            if *count == 0 {
+                filled.push(k);
+            }
+            *count += 1;
+        }
+        let mut offset = 0;
+        for &b in &filled {
+            let count = self.next[b as usize];
+            self.start[b as usize] = offset;
+            self.next[b as usize] = offset;
+            offset += count;
+        }
+        self.items.clear();
+        self.items.resize(keys.len(), 0);
+        for (i, &k) in keys.iter().enumerate() {
+            let at = &mut self.next[k as usize];
+            self.items[*at as usize] = i as u32;
+            *at += 1;
+        }
+        self.filled = Some(filled);
+    }
+
     /// Counting sort of the points by their buckets `keys` (`keys[i]`: point i's).
     fn build_from_keys(&mut self, keys: &[u32], cell: f32, buckets: usize) {
+        self.filled = None;
         self.cell = cell;
         self.start.clear();
         self.start.resize(buckets + 1, 0);
@@ -250,7 +415,7 @@ impl HashGrid {
             for y in lo.y..=hi.y {
                 for z in lo.z..=hi.z {
                     let b = bucket(IVec3::new(x, y, z), buckets);
-                    for &i in &self.items[self.start[b] as usize..self.start[b + 1] as usize] {
+                    for &i in &self.items[self.start[b] as usize..self.next[b] as usize] {
                         visit(i as usize);
                     }
                 }
@@ -275,7 +440,7 @@ impl HashGrid {
                     }
                     seen[n] = b;
                     n += 1;
-                    for &i in &self.items[self.start[b] as usize..self.start[b + 1] as usize] {
+                    for &i in &self.items[self.start[b] as usize..self.next[b] as usize] {
                         visit(i as usize);
                     }
                 }
@@ -304,6 +469,7 @@ impl ShellCollider {
             now_at: None,
             before: Vec::new(),
             fastest: 0.0,
+            focus: None,
             frames,
             bounds,
             grid: HashGrid::default(),
@@ -327,14 +493,34 @@ impl ShellCollider {
         // Substeps follow one another: where the last one ended (`now`) is where this one
         // starts, so its positions are reused rather than interpolated again; buffers are kept.
         let mut before = std::mem::take(&mut self.before);
+        let refocused = self
+            .focus
+            .as_mut()
+            .is_some_and(|f| std::mem::take(&mut f.changed));
         if self.now_at != Some(from) {
             interpolate_into(&self.frames, from, &mut before);
         } else {
             std::mem::swap(&mut before, &mut self.now);
+            if let Some(focus) = self.focus.as_ref().filter(|_| refocused) {
+                // Particles that joined the focus were not moved while out of it.
+                let last = self.frames.len() - 1;
+                let k = (from.floor().max(0.0) as usize).min(last);
+                let j = (k + 1).min(last);
+                let w = frame_weight(from, k, j);
+                let (a, b) = (&self.frames[k], &self.frames[j]);
+                for &i in &focus.active {
+                    let i = i as usize;
+                    before[i] = a[i].lerp(b[i], w);
+                }
+            }
         }
         self.now_at = Some(to);
         let cell = self.cell_for(garment_radius);
         let buckets = Self::buckets_for(self.most_particles());
+        if self.focus.is_some() && self.advance_focused(to, &before, cell, buckets) {
+            self.before = before;
+            return;
+        }
         if !self.advance_in_one_pass(to, &before, cell, buckets) {
             self.advance_in_steps(to, &before, cell, buckets);
         }
@@ -393,6 +579,140 @@ impl ShellCollider {
         self.grid.keys = keys;
         self.bounds = (lo, hi);
         self.fastest = fastest.sqrt();
+        true
+    }
+
+    /// Focuses the substeps from fractional frame `from` to the end of that frame on the shell
+    /// particles whose path over them comes near the garments (`near`, made for two contact
+    /// distances beyond how far the garments may go meanwhile); `per_substep` is the share of a
+    /// frame one substep takes. Only shells that keep their particles and move are focused, and
+    /// only when the focus leaves out at least half of the particles (otherwise moving them all
+    /// on every thread costs less than the focus).
+    pub fn focus(&mut self, from: f32, near: &NearGarments, per_substep: f32) {
+        let last = self.frames.len() - 1;
+        let k = (from.floor().max(0.0) as usize).min(last);
+        let j = (k + 1).min(last);
+        let (a, b) = (&self.frames[k], &self.frames[j]);
+        if self.frames.len() == 1 || a.len() != b.len() || a.len() < PARALLEL_FROM {
+            self.unfocus();
+            return;
+        }
+        // Each particle's index when it takes part, else its motion over the frame.
+        let sorted: Vec<Result<u32, f32>> = (0..a.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let (p, q) = (a[i], b[i]);
+                if near.touches(p.min(q), p.max(q)) {
+                    Ok(i as u32)
+                } else {
+                    Err(p.distance(q))
+                }
+            })
+            .collect();
+        let previous = self.focus.take();
+        let active: Vec<u32> = sorted.iter().filter_map(|r| r.ok()).collect();
+        if 2 * active.len() > a.len() {
+            // Not worth it: every particle again; those left out were not moved, so the next
+            // substep starts from interpolated positions.
+            if previous.is_some() {
+                self.now_at = None;
+            }
+            return;
+        }
+        let left_out = sorted.iter().filter_map(|r| r.err()).fold(0.0, f32::max);
+        // Particles that join were not moved while they were out: the next substep starts
+        // from interpolated positions then.
+        let changed = previous
+            .as_ref()
+            .is_some_and(|p| p.changed || p.active != active);
+        self.focus = Some(Focus {
+            changed,
+            active,
+            left_out_fastest: left_out * per_substep,
+            now: previous.map(|p| p.now).unwrap_or_default(),
+        });
+    }
+
+    /// True for a shell [`ShellCollider::focus`] may focus: one that moves and keeps its many
+    /// particles.
+    pub fn can_focus(&self) -> bool {
+        self.frames.len() > 1
+            && self.frames[0].len() >= PARALLEL_FROM
+            && self.frames.iter().all(|f| f.len() == self.frames[0].len())
+    }
+
+    /// Particles in focus, of all (None: not focused).
+    pub fn focused(&self) -> Option<(usize, usize)> {
+        self.focus
+            .as_ref()
+            .map(|f| (f.active.len(), self.now.len()))
+    }
+
+    /// Every particle takes part again (the GPU backend reads them all).
+    pub fn unfocus(&mut self) {
+        if self.focus.take().is_some() {
+            // The particles left out were not moved: start from interpolated positions.
+            self.now_at = None;
+        }
+    }
+
+    /// [`Self::advance_in_one_pass`] for the focus's particles only; false when it does not
+    /// apply. The same numbers for each of them as the full pass.
+    fn advance_focused(&mut self, to: f32, before: &[Vec3], cell: f32, buckets: usize) -> bool {
+        let last = self.frames.len() - 1;
+        let k = (to.floor().max(0.0) as usize).min(last);
+        let j = (k + 1).min(last);
+        let w = frame_weight(to, k, j);
+        let (a, b) = (&self.frames[k], &self.frames[j]);
+        let n = a.len();
+        let Some(focus) = self.focus.as_mut() else {
+            return false;
+        };
+        if b.len() != n || before.len() != n {
+            return false;
+        }
+        self.now.resize(n, Vec3::ZERO);
+        self.motion.resize(n, Vec3::ZERO);
+        let mut computed = std::mem::take(&mut focus.now);
+        computed.clear();
+        let normals = (!self.normals.is_empty()).then(|| (&self.normals[k], &self.normals[j]));
+        computed.par_extend(focus.active.par_iter().with_min_len(1024).map(|&i| {
+            let i = i as usize;
+            let p = a[i].lerp(b[i], w);
+            let normal = normals.map_or(Vec3::ZERO, |(na, nb)| {
+                na[i].lerp(nb[i], w).normalize_or(Vec3::Y)
+            });
+            (p, p - before[i], normal, key_of(p, cell, buckets))
+        }));
+        if normals.is_some() {
+            self.now_normal.resize(n, Vec3::ZERO);
+        }
+        let (mut lo, mut hi, mut fastest) = (Vec3::MAX, Vec3::MIN, 0.0f32);
+        let mut keys = std::mem::take(&mut self.grid.keys);
+        keys.clear();
+        for (&i, &(p, m, normal, key)) in focus.active.iter().zip(&computed) {
+            let i = i as usize;
+            self.now[i] = p;
+            self.motion[i] = m;
+            if normals.is_some() {
+                self.now_normal[i] = normal;
+            }
+            keys.push(key);
+            let start = p - m;
+            lo = lo.min(p).min(start);
+            hi = hi.max(p).max(start);
+            fastest = fastest.max(m.length_squared());
+        }
+        self.grid.build_sparse(&keys, cell, buckets);
+        // The grid lists positions in `keys`' order: map them back to the particles.
+        for item in &mut self.grid.items {
+            *item = focus.active[*item as usize];
+        }
+        self.grid.keys = keys;
+        focus.now = computed;
+        self.bounds = (lo, hi);
+        self.fastest = fastest.sqrt().max(focus.left_out_fastest);
         true
     }
 
@@ -657,6 +977,8 @@ impl ShellCollider {
     /// A shell re-sampled per frame is padded to its most particles over the frames (the GPU
     /// lays every substep out alike): padding particles sit 10¹⁸ m away, where no garment
     /// particle comes within reach, and no grid bucket lists them.
+    /// Of a shell that is not focused (a focused one moved only some of its particles; the GPU
+    /// backend unfocuses every shell).
     pub fn gpu_snapshot(&self) -> ShellSnapshot {
         let most = self.most_particles();
         let far = [Vec4::splat(1e18), Vec4::ZERO, Vec4::ZERO];
@@ -705,6 +1027,37 @@ impl ShellCollider {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn near_garments_marks_every_point_within_each_particles_distance() {
+        let points = [
+            (Vec3::new(0.0, 1.0, 0.0), 0.05),
+            (Vec3::new(1.0, 1.0, 0.0), 0.2),
+        ];
+        let near = NearGarments::new(&points, 0.04);
+        // Points at just under each particle's distance, in every direction, are in marked
+        // cells; boxes well beyond both distances are not.
+        for (p, d) in points {
+            for dir in [
+                Vec3::X,
+                Vec3::NEG_X,
+                Vec3::Y,
+                Vec3::NEG_Y,
+                Vec3::Z,
+                Vec3::ONE.normalize(),
+            ] {
+                let q = p + dir * d * 0.999;
+                assert!(near.touches(q, q), "{q} within {d} of {p}");
+            }
+        }
+        let far = Vec3::new(0.5, 1.0, 0.0);
+        assert!(!near.touches(far, far));
+        assert!(!near.touches(Vec3::new(0.0, 1.2, 0.0), Vec3::new(0.0, 1.3, 0.0)));
+        // A path from far away into reach touches.
+        assert!(near.touches(Vec3::new(0.0, 1.02, 0.0), Vec3::new(0.0, 3.0, 0.0)));
+        // Outside the lattice altogether.
+        assert!(!near.touches(Vec3::splat(-9.0), Vec3::splat(-8.0)));
+    }
 
     #[test]
     fn cell_index_is_floor_for_every_kind_of_value() {

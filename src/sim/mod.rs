@@ -28,6 +28,10 @@ pub use state::State;
 use std::sync::{Mutex, RwLock};
 use team::{Member, Shared};
 
+/// How much farther than their motion predicts the garments may go before the shells' focus is
+/// made again [m].
+const FOCUS_SLACK: f32 = 0.02;
+
 /// A running simulation of one scene's garments.
 pub struct Simulation {
     /// Private: the solver indexes it unchecked, so it must not change after validation.
@@ -76,6 +80,11 @@ pub struct Simulation {
     pub attachments: attach::Attachments,
     /// Frames per second (the clock of characters and keyframes).
     fps: f32,
+    /// Where the garment particles were when the shells' focus was made, and how far from there
+    /// it lets them go [m].
+    focus_origin: Vec<(Vec4, f32)>,
+    /// Whether the CPU focuses shells at all (on by default; off shows what it saves).
+    pub focus_enabled: bool,
     /// Fastest any attached particle or keyframed collider has moved so far [m/s].
     driven_speed: f32,
     /// Keyframed colliders: (index in `colliders`, motion, shape at rest).
@@ -158,6 +167,8 @@ impl Simulation {
             attachments,
             fps: scene.fps,
             driven_speed: 0.0,
+            focus_origin: Vec::new(),
+            focus_enabled: true,
             particle_collisions,
             grid,
             pushes,
@@ -268,6 +279,7 @@ impl Simulation {
         } else {
             // Characters, attachment targets and force fields change every substep: they
             // advance between team regions.
+            self.focus_shells(true);
             for _ in 0..self.substeps {
                 self.substep();
             }
@@ -277,6 +289,7 @@ impl Simulation {
     /// Advances one substep.
     pub fn substep(&mut self) {
         let start = std::time::Instant::now();
+        self.focus_shells(false);
         self.advance_shells();
         let placed = self.stage_times.lap(schedule::timed("shells"), start);
         self.place_attachments();
@@ -334,6 +347,54 @@ impl Simulation {
     /// Takes lists another backend kept (the GPU's, for a checkpoint).
     pub fn set_nearby_lists(&mut self, lists: Vec<crate::collide::shell::Nearby>) {
         self.nearby = lists;
+    }
+
+    /// Keeps each shell focused on the particles that can come near the garments (see
+    /// `collide::shell`'s `Focus`): at a frame's start (`frame_start`), or when a garment
+    /// particle is about to go farther from where it was when the focus was made than the focus
+    /// allows it. The focus allows each particle its own speed and gravity over a frame, twice,
+    /// plus [`FOCUS_SLACK`]; before each substep, each particle must be within that of its
+    /// place then, less twice its own motion in a substep and twice the shells' fastest.
+    fn focus_shells(&mut self, frame_start: bool) {
+        if !self.focus_enabled || !self.shells.iter().any(|s| s.can_focus()) {
+            return;
+        }
+        let (h, g) = (self.step, self.gravity.length());
+        if !frame_start && self.focus_origin.len() == self.state.positions.len() {
+            let carried = self
+                .shells
+                .iter()
+                .map(|s| s.fastest_motion())
+                .fold(0.0, f32::max);
+            let (positions, velocities) = (&self.state.positions, &self.state.velocities);
+            let holds = (positions.iter().zip(velocities))
+                .zip(&self.focus_origin)
+                .all(|((p, v), (o, allowed))| {
+                    let within = 2.0 * (v.length() * h + g * h * h + carried);
+                    p.distance(*o) + within <= *allowed
+                });
+            if holds {
+                return;
+            }
+        }
+        let frame = 1.0 / self.fps;
+        let allowance = |v: &Vec4| 2.0 * (v.length() * frame + g * frame * frame) + FOCUS_SLACK;
+        self.focus_origin.clear();
+        self.focus_origin.extend(
+            (self.state.positions.iter().zip(&self.state.velocities))
+                .map(|(p, v)| (*p, allowance(v))),
+        );
+        let shell_radius = self.shells.iter().map(|s| s.radius).fold(0.0, f32::max);
+        let reach = self.largest_contact_radius() + shell_radius;
+        let reaches: Vec<(Vec3, f32)> = (self.focus_origin.iter())
+            .map(|(p, allowed)| (p.truncate(), allowed + 2.0 * reach))
+            .collect();
+        let near = crate::collide::shell::NearGarments::new(&reaches, 4.0 * reach);
+        let from = self.elapsed_substeps as f32 / self.substeps as f32;
+        let per_substep = 1.0 / self.substeps as f32;
+        for s in &mut self.shells {
+            s.focus(from, &near, per_substep);
+        }
     }
 
     /// Moves the characters' shells to the end of the coming substep.
@@ -431,6 +492,10 @@ impl Simulation {
     /// `placed_elsewhere` (the GPU places them from their skins) have no snapshots: they are
     /// moved over the whole frame at once.
     pub fn drive_frame(&mut self, static_shells: bool, placed_elsewhere: &[bool]) -> DrivenFrame {
+        // The GPU reads every shell particle.
+        for s in &mut self.shells {
+            s.unfocus();
+        }
         let mut frame = DrivenFrame::default();
         let start = std::time::Instant::now();
         self.advance_shells_over_frame(placed_elsewhere);
