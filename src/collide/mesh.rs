@@ -63,18 +63,26 @@ pub fn penetration(
 ) -> Penetration {
     let cell_of = |p: Vec3| (p / REACH).floor().as_ivec3();
     // Each triangle in every cell its box, grown by REACH, touches: a point's own cell then
-    // holds every triangle within REACH of it.
-    let mut grid: crate::character::shell::CellMap<Vec<u32>> = Default::default();
+    // holds every triangle within REACH of it. Only the points' cells are kept (a body's
+    // triangles far from the cloth are never looked at).
+    let mut grid: crate::character::shell::CellMap<Vec<u32>> =
+        points.iter().map(|&p| (cell_of(p), Vec::new())).collect();
+    let (near_lo, near_hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| {
+        (lo.min(p), hi.max(p))
+    });
     for (t, tri) in triangles.iter().enumerate() {
         let [a, b, c] = tri.map(|i| vertices[i as usize]);
-        let (lo, hi) = (
-            cell_of(a.min(b).min(c) - REACH),
-            cell_of(a.max(b).max(c) + REACH),
-        );
+        let (lo, hi) = (a.min(b).min(c) - REACH, a.max(b).max(c) + REACH);
+        if lo.cmpgt(near_hi).any() || hi.cmplt(near_lo).any() {
+            continue;
+        }
+        let (lo, hi) = (cell_of(lo), cell_of(hi));
         for x in lo.x..=hi.x {
             for y in lo.y..=hi.y {
                 for z in lo.z..=hi.z {
-                    grid.entry(IVec3::new(x, y, z)).or_default().push(t as u32);
+                    if let Some(list) = grid.get_mut(&IVec3::new(x, y, z)) {
+                        list.push(t as u32);
+                    }
                 }
             }
         }
