@@ -281,14 +281,12 @@ pub struct ShellCollider {
 #[derive(Clone, Debug, Default)]
 struct HashGrid {
     cell: f32,
-    /// Start of each bucket in `items`; length = buckets + 1 (a prefix sum after a full
-    /// build, as the GPU reads it).
-    start: Vec<u32>,
+    /// Each bucket's start and end in `items`, side by side (a lookup touches one cache line).
+    /// After a full build the starts are a prefix sum, as the GPU reads them.
+    ranges: Vec<[u32; 2]>,
     items: Vec<u32>,
     /// Each point's bucket (a buffer kept between builds).
     keys: Vec<u32>,
-    /// End of each bucket in `items` (its next free slot while building).
-    next: Vec<u32>,
     /// After a sparse build, the buckets it filled (the others are empty: start = end = 0);
     /// None after a full build.
     filled: Option<Vec<u32>>,
@@ -338,27 +336,24 @@ impl HashGrid {
     /// [`Self::build_from_keys`] in time proportional to the points, not the buckets: only the
     /// buckets the points fill are written (the others left empty), so a few thousand points
     /// among a hundred thousand buckets cost a few thousand steps. Each bucket lists its points
-    /// in the same order as the full build; `start` is no prefix sum (not for the GPU).
+    /// in the same order as the full build; the starts are no prefix sum (not for the GPU).
     fn build_sparse(&mut self, keys: &[u32], cell: f32, buckets: usize) {
         self.cell = cell;
         let mut filled = match self.filled.take() {
-            Some(f) if self.start.len() == buckets + 1 => f,
+            Some(f) if self.ranges.len() == buckets => f,
             _ => {
-                self.start.clear();
-                self.start.resize(buckets + 1, 0);
-                self.next.clear();
-                self.next.resize(buckets + 1, 0);
+                self.ranges.clear();
+                self.ranges.resize(buckets, [0, 0]);
                 Vec::new()
             }
         };
         for &b in &filled {
-            self.start[b as usize] = 0;
-            self.next[b as usize] = 0;
+            self.ranges[b as usize] = [0, 0];
         }
         filled.clear();
-        // Count into `next`, then give each filled bucket its place in `items`.
+        // Count into the ends, then give each filled bucket its place in `items`.
         for &k in keys {
-            let count = &mut self.next[k as usize];
+            let count = &mut self.ranges[k as usize][1];
             if *count == 0 {
                 filled.push(k);
             }
@@ -366,18 +361,12 @@ impl HashGrid {
         }
         let mut offset = 0;
         for &b in &filled {
-            let count = self.next[b as usize];
-            self.start[b as usize] = offset;
-            self.next[b as usize] = offset;
+            let range = &mut self.ranges[b as usize];
+            let count = range[1];
+            *range = [offset, offset];
             offset += count;
         }
-        self.items.clear();
-        self.items.resize(keys.len(), 0);
-        for (i, &k) in keys.iter().enumerate() {
-            let at = &mut self.next[k as usize];
-            self.items[*at as usize] = i as u32;
-            *at += 1;
-        }
+        self.fill_items(keys);
         self.filled = Some(filled);
     }
 
@@ -385,37 +374,51 @@ impl HashGrid {
     fn build_from_keys(&mut self, keys: &[u32], cell: f32, buckets: usize) {
         self.filled = None;
         self.cell = cell;
-        self.start.clear();
-        self.start.resize(buckets + 1, 0);
+        self.ranges.clear();
+        self.ranges.resize(buckets, [0, 0]);
         for &k in keys {
-            self.start[k as usize + 1] += 1;
+            self.ranges[k as usize][1] += 1;
         }
-        for b in 0..buckets {
-            self.start[b + 1] += self.start[b];
+        let mut offset = 0;
+        for range in &mut self.ranges {
+            let count = range[1];
+            *range = [offset, offset];
+            offset += count;
         }
-        self.next.clear();
-        self.next.extend_from_slice(&self.start);
+        self.fill_items(keys);
+    }
+
+    /// Puts each point into its bucket's next free slot (every bucket's range empty at its
+    /// start), so each bucket lists its points in ascending order.
+    fn fill_items(&mut self, keys: &[u32]) {
         self.items.clear();
         self.items.resize(keys.len(), 0);
         for (i, &k) in keys.iter().enumerate() {
-            let at = &mut self.next[k as usize];
+            let at = &mut self.ranges[k as usize][1];
             self.items[*at as usize] = i as u32;
             *at += 1;
         }
+    }
+
+    /// The points in bucket `b`.
+    #[inline]
+    fn bucket_items(&self, b: usize) -> &[u32] {
+        let [start, end] = self.ranges[b];
+        &self.items[start as usize..end as usize]
     }
 
     /// Calls `visit` with every point index in the cells around the segment from `a` to `b`
     /// (its bounding box grown by one cell; a bucket may be visited twice).
     #[inline]
     fn near_segment(&self, a: Vec3, b: Vec3, mut visit: impl FnMut(usize)) {
-        let buckets = self.start.len() - 1;
+        let buckets = self.ranges.len();
         let lo = cell_index(a.min(b), self.cell).saturating_sub(IVec3::ONE);
         let hi = cell_index(a.max(b), self.cell).saturating_add(IVec3::ONE);
         for x in lo.x..=hi.x {
             for y in lo.y..=hi.y {
                 for z in lo.z..=hi.z {
                     let b = bucket(IVec3::new(x, y, z), buckets);
-                    for &i in &self.items[self.start[b] as usize..self.next[b] as usize] {
+                    for &i in self.bucket_items(b) {
                         visit(i as usize);
                     }
                 }
@@ -426,7 +429,7 @@ impl HashGrid {
     /// Calls `visit` with every point index in the 27 cells around `p`.
     #[inline]
     fn near(&self, p: Vec3, mut visit: impl FnMut(usize)) {
-        let buckets = self.start.len() - 1;
+        let buckets = self.ranges.len();
         let c = cell_index(p, self.cell);
         let mut seen = [usize::MAX; 27];
         let mut n = 0;
@@ -440,7 +443,7 @@ impl HashGrid {
                     }
                     seen[n] = b;
                     n += 1;
-                    for &i in &self.items[self.start[b] as usize..self.next[b] as usize] {
+                    for &i in self.bucket_items(b) {
                         visit(i as usize);
                     }
                 }
@@ -992,9 +995,10 @@ impl ShellCollider {
             })
             .collect();
         particles.resize(most, far);
-        let mut grid = self.grid.start.clone();
+        let mut grid: Vec<u32> = self.grid.ranges.iter().map(|r| r[0]).collect();
+        grid.push(self.grid.items.len() as u32);
         grid.extend_from_slice(&self.grid.items);
-        grid.resize(self.grid.start.len() + most, 0);
+        grid.resize(self.grid.ranges.len() + 1 + most, 0);
         (particles, grid)
     }
 
