@@ -399,15 +399,10 @@ fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
         30,
     );
     let scene = common::scene(&text);
-    let build = || {
-        let mut warnings = Vec::new();
-        let characters =
-            drape::bake::load_characters(&scene, &dir.path().join("cache"), &mut warnings).unwrap();
-        drape::bake::simulation(&scene, characters, "<test scene>")
-            .unwrap()
-            .sim
-    };
-    let (mut focused, mut whole) = (build(), build());
+    let (mut focused, mut whole) = (
+        simulation(&scene, dir.path()),
+        simulation(&scene, dir.path()),
+    );
     whole.focus_enabled = false;
     let mut fewest = usize::MAX;
     for frame in 0..scene.frames {
@@ -478,15 +473,17 @@ fn on_both_backends(
     drape::gpu::GpuSimulation,
 ) {
     // The bake's own builder, twice (the second load reuses the shell cache).
-    let build = || {
-        let mut warnings = Vec::new();
-        let characters =
-            drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
-        drape::bake::simulation(scene, characters, "<test scene>")
-            .unwrap()
-            .sim
-    };
-    let (cpu, on_gpu) = (build(), build());
+    let (cpu, on_gpu) = (simulation(scene, dir), simulation(scene, dir));
     let gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     (cpu, on_gpu, gpu)
+}
+
+/// `scene`'s simulation as the bake builds it, its characters' shells cached under `dir`.
+fn simulation(scene: &drape::scene::Scene, dir: &Path) -> drape::sim::Simulation {
+    let mut warnings = Vec::new();
+    let characters =
+        drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
+    drape::bake::simulation(scene, characters, "<test scene>")
+        .unwrap()
+        .sim
 }

@@ -48,10 +48,16 @@ pub fn frame_weight(f: f32, k: usize, j: usize) -> f32 {
     }
 }
 
+/// The two frames fractional frame `f` lies between, `k` and `j` (the last frame holds), and
+/// the weight of `j` ([`frame_weight`]).
+fn frame_span(frames: usize, f: f32) -> (usize, usize, f32) {
+    let k = (f.floor().max(0.0) as usize).min(frames - 1);
+    let j = (k + 1).min(frames - 1);
+    (k, j, frame_weight(f, k, j))
+}
+
 fn interpolate_into(frames: &[Vec<Vec3>], f: f32, out: &mut Vec<Vec3>) {
-    let k = (f.floor().max(0.0) as usize).min(frames.len() - 1);
-    let j = (k + 1).min(frames.len() - 1);
-    let w = frame_weight(f, k, j);
+    let (k, j, w) = frame_span(frames.len(), f);
     out.clear();
     if frames[k].len() != frames[j].len() {
         out.extend_from_slice(&frames[k]);
@@ -506,10 +512,7 @@ impl ShellCollider {
             std::mem::swap(&mut before, &mut self.now);
             if let Some(focus) = self.focus.as_ref().filter(|_| refocused) {
                 // Particles that joined the focus were not moved while out of it.
-                let last = self.frames.len() - 1;
-                let k = (from.floor().max(0.0) as usize).min(last);
-                let j = (k + 1).min(last);
-                let w = frame_weight(from, k, j);
+                let (k, j, w) = frame_span(self.frames.len(), from);
                 let (a, b) = (&self.frames[k], &self.frames[j]);
                 for &i in &focus.active {
                     let i = i as usize;
@@ -536,10 +539,7 @@ impl ShellCollider {
     /// apply. Every number is computed per particle (or is a minimum or maximum), so any
     /// number of threads gives the same.
     fn advance_in_one_pass(&mut self, to: f32, before: &[Vec3], cell: f32, buckets: usize) -> bool {
-        let last = self.frames.len() - 1;
-        let k = (to.floor().max(0.0) as usize).min(last);
-        let j = (k + 1).min(last);
-        let w = frame_weight(to, k, j);
+        let (k, j, w) = frame_span(self.frames.len(), to);
         let (a, b) = (&self.frames[k], &self.frames[j]);
         let n = a.len();
         if n < PARALLEL_FROM || b.len() != n || before.len() != n {
@@ -592,9 +592,7 @@ impl ShellCollider {
     /// only when the focus leaves out at least half of the particles (otherwise moving them all
     /// on every thread costs less than the focus).
     pub fn focus(&mut self, from: f32, near: &NearGarments, per_substep: f32) {
-        let last = self.frames.len() - 1;
-        let k = (from.floor().max(0.0) as usize).min(last);
-        let j = (k + 1).min(last);
+        let (k, j, _) = frame_span(self.frames.len(), from);
         let (a, b) = (&self.frames[k], &self.frames[j]);
         if self.frames.len() == 1 || a.len() != b.len() || a.len() < PARALLEL_FROM {
             self.unfocus();
@@ -663,10 +661,7 @@ impl ShellCollider {
     /// [`Self::advance_in_one_pass`] for the focus's particles only; false when it does not
     /// apply. The same numbers for each of them as the full pass.
     fn advance_focused(&mut self, to: f32, before: &[Vec3], cell: f32, buckets: usize) -> bool {
-        let last = self.frames.len() - 1;
-        let k = (to.floor().max(0.0) as usize).min(last);
-        let j = (k + 1).min(last);
-        let w = frame_weight(to, k, j);
+        let (k, j, w) = frame_span(self.frames.len(), to);
         let (a, b) = (&self.frames[k], &self.frames[j]);
         let n = a.len();
         let Some(focus) = self.focus.as_mut() else {
