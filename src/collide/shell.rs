@@ -1054,9 +1054,11 @@ impl ShellCollider {
         self.frames.iter().map(Vec::len).max().unwrap_or(0)
     }
 
-    /// Hash buckets of the grid for `particles` shell particles.
+    /// Hash buckets of the grid for `particles` shell particles: eight per particle, so the
+    /// buckets a test walks rarely hold particles of other cells (measured on P: `finish` 12 →
+    /// 7.8 ms per frame against two per particle; sixteen gained nothing more).
     pub fn buckets_for(particles: usize) -> usize {
-        (2 * particles).next_power_of_two().max(64)
+        (8 * particles).next_power_of_two().max(64)
     }
 
     /// Width of a grid cell for garment particles of contact radius up to `garment_radius`.
