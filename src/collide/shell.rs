@@ -635,7 +635,7 @@ impl ShellCollider {
             return;
         }
         // Each particle's index when it takes part, else its motion over the frame.
-        let sorted: Vec<Result<u32, f32>> = (0..a.len())
+        let taken: Vec<Result<u32, f32>> = (0..a.len())
             .into_par_iter()
             .with_min_len(1024)
             .map(|i| {
@@ -648,7 +648,7 @@ impl ShellCollider {
             })
             .collect();
         let previous = self.focus.take();
-        let active: Vec<u32> = sorted.iter().filter_map(|r| r.ok()).collect();
+        let active: Vec<u32> = taken.iter().filter_map(|r| r.ok()).collect();
         if 10 * active.len() > 9 * a.len() {
             // Not worth it: every particle again; any left out so far were not moved, so the
             // next substep starts from interpolated positions.
@@ -657,7 +657,7 @@ impl ShellCollider {
             }
             return;
         }
-        let left_out = sorted.iter().filter_map(|r| r.err()).fold(0.0, f32::max);
+        let left_out = taken.iter().filter_map(|r| r.err()).fold(0.0, f32::max);
         // Particles that join were not moved while they were out: the next substep starts
         // from interpolated positions then.
         let changed = previous
