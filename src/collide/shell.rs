@@ -142,6 +142,12 @@ pub const SHELL_FOUND: usize = 512;
 /// A garment particle's [`NEARBY`] shell particles.
 pub type Nearby = [u32; NEARBY];
 
+/// How many shell particles `list` holds (its entries come first, then `u32::MAX`).
+#[inline]
+pub fn listed(list: &Nearby) -> u8 {
+    list.iter().take_while(|&&e| e != u32::MAX).count() as u8
+}
+
 /// Where the garments are, coarsely: a dense lattice of cells over the garments' box, each
 /// cell marked when it lies within some garment particle's own distance of it (a cube of cells
 /// around the particle's), so a point within that distance of a particle lies in a marked cell.

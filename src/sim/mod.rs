@@ -70,6 +70,10 @@ pub struct Simulation {
     /// With several collision passes, each garment particle's nearby shell particles, per
     /// shell (shell-major), found at the end of the previous substep.
     nearby: Vec<crate::collide::shell::Nearby>,
+    /// How many shell particles each of those lists holds: what the collision passes read first,
+    /// so the particles near no shell (most of a garment) cost them one byte, not a list's 64
+    /// (P's lists are 530 KB, more than a core's L2, read nine times a substep).
+    listed: Vec<u8>,
     /// Each particle's clearance from the quiet colliders at the start of the substep (see
     /// [`Stages::contact_pass`]), kept between a substep's collision passes.
     clearance: Vec<f32>,
@@ -173,6 +177,7 @@ impl Simulation {
             grid,
             pushes,
             nearby: Vec::new(),
+            listed: Vec::new(),
             clearance: Vec::new(),
             quiet: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
@@ -347,6 +352,11 @@ impl Simulation {
     /// Takes lists another backend kept (the GPU's, for a checkpoint).
     pub fn set_nearby_lists(&mut self, lists: Vec<crate::collide::shell::Nearby>) {
         self.nearby = lists;
+        self.listed = self
+            .nearby
+            .iter()
+            .map(crate::collide::shell::listed)
+            .collect();
     }
 
     /// Keeps each shell focused on the particles that can come near the garments (see
@@ -606,9 +616,10 @@ impl Simulation {
             0
         };
         if self.nearby.len() != nearby_len {
-            self.nearby = vec![[u32::MAX; crate::collide::shell::NEARBY]; nearby_len];
+            self.set_nearby_lists(vec![[u32::MAX; crate::collide::shell::NEARBY]; nearby_len]);
         }
         let nearby = Shared::new(&mut self.nearby);
+        let listed = Shared::new(&mut self.listed);
         let clearance_len = if passes > 1 {
             self.model.particle_count()
         } else {
@@ -647,6 +658,7 @@ impl Simulation {
             velocities,
             pushes: self.particle_collisions.is_some().then_some(pushes),
             nearby,
+            listed,
             clearance,
             quiet: &self.quiet,
             external: &self.external,
@@ -792,6 +804,8 @@ struct Stages<'a> {
     pushes: Option<Shared<Vec4>>,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     nearby: Shared<crate::collide::shell::Nearby>,
+    /// How many entries each nearby list holds.
+    listed: Shared<u8>,
     /// Each particle's clearance from the quiet colliders (with collision passes).
     clearance: Shared<f32>,
     /// Which colliders are quiet ([`Collider::is_quiet`]).
@@ -867,8 +881,11 @@ impl Stages<'_> {
     fn contact_pass(&self, m: &Member, first: bool) {
         let (model, b) = (self.model, &self.b);
         let particles = model.particle_count();
-        for i in self.free_particles(m) {
-            // SAFETY: particle i is this thread's.
+        m.balanced(&model.storage_of, |i| {
+            if model.inv_mass[i] == 0.0 {
+                return;
+            }
+            // SAFETY: particle i is this thread's alone in this stage.
             unsafe {
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
@@ -882,11 +899,14 @@ impl Stages<'_> {
                 };
                 d = self.resolve_colliders(x, d, r, clearance);
                 for (k, s) in self.shells.iter().enumerate() {
-                    d = s.resolve_nearby(x, d, r, &self.nearby.get(k * particles + i));
+                    let at = k * particles + i;
+                    if self.listed.get(at) != 0 {
+                        d = s.resolve_nearby(x, d, r, &self.nearby.get(at));
+                    }
                 }
                 b.delta.set(i, d);
             }
-        }
+        });
     }
 
     /// Every collider's `resolve` in turn, skipping the quiet ones while the displacement is
@@ -925,8 +945,12 @@ impl Stages<'_> {
     /// collisions, then x += Δ and v = Δ/h; and, when `predict_next`, the next prediction.
     fn finish(&self, m: &Member, predict_next: bool) {
         let (model, b) = (self.model, &self.b);
-        for i in self.free_particles(m) {
-            // SAFETY: particle i is this thread's; the pins read by the tethers are never written.
+        m.balanced(&model.storage_of, |i| {
+            if model.inv_mass[i] == 0.0 {
+                return;
+            }
+            // SAFETY: particle i is this thread's alone in this stage; the pins read by the
+            // tethers are never written.
             unsafe {
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
@@ -950,9 +974,14 @@ impl Stages<'_> {
                 let particles = model.particle_count();
                 for (k, s) in self.shells.iter().enumerate() {
                     // With collision passes, list the shell particles near i for the next ones.
-                    let nearby =
-                        (!self.nearby.is_empty()).then(|| self.nearby.get_mut(k * particles + i));
-                    d = s.resolve(x, d, r, nearby);
+                    if self.nearby.is_empty() {
+                        d = s.resolve(x, d, r, None);
+                    } else {
+                        let at = k * particles + i;
+                        let list = self.nearby.get_mut(at);
+                        d = s.resolve(x, d, r, Some(&mut *list));
+                        self.listed.set(at, crate::collide::shell::listed(list));
+                    }
                 }
                 b.x.set(i, x + d);
                 if let Some(v) = self.verlet {
@@ -962,6 +991,6 @@ impl Stages<'_> {
                     self.predict_one(i);
                 }
             }
-        }
+        });
     }
 }

@@ -130,7 +130,7 @@ impl Simulation {
         }
         self.state.positions = snapshot.positions.clone();
         self.state.velocities = snapshot.velocities.clone();
-        self.nearby = snapshot.nearby.clone();
+        self.set_nearby_lists(snapshot.nearby.clone());
         self.elapsed_substeps = snapshot.elapsed_substeps;
         self.torn_springs = snapshot.torn_springs;
         self.force_work = snapshot.force_work;

@@ -8,7 +8,7 @@
 //! same indices from the same thread, so results never depend on scheduling.
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex};
 
 /// Barrier for the threads of one team: spins briefly (a stage of a substep lasts microseconds,
@@ -112,6 +112,46 @@ pub struct Member<'a> {
     /// Threads in the team.
     pub count: usize,
     barrier: &'a SpinBarrier,
+    /// Per thread, what is left of its particles in the current balanced stage.
+    left: &'a [Left],
+}
+
+/// What is left of one thread's particles in a balanced stage ([`Member::balanced`]): the
+/// positions `front..back` in its own list, packed in one word so that the owner (taking from the
+/// front) and a thread done early (taking from the back) never take the same particle. Padded to a
+/// cache line of its own: the owner updates it for every chunk.
+#[repr(align(64))]
+#[derive(Default)]
+struct Left(AtomicU64);
+
+/// Particles taken at a time in a balanced stage.
+const CHUNK: u64 = 32;
+
+impl Left {
+    /// Takes up to [`CHUNK`] positions from the front (`owner`) or the back; None when none is
+    /// left.
+    fn take(&self, owner: bool) -> Option<std::ops::Range<u64>> {
+        let mut now = self.0.load(Ordering::Acquire);
+        loop {
+            let (front, back) = (now >> 32, now & 0xffff_ffff);
+            if front >= back {
+                return None;
+            }
+            let n = CHUNK.min(back - front);
+            let (next, taken) = if owner {
+                ((front + n) << 32 | back, front..front + n)
+            } else {
+                (front << 32 | (back - n), back - n..back)
+            };
+            match self
+                .0
+                .compare_exchange_weak(now, next, Ordering::AcqRel, Ordering::Acquire)
+            {
+                Ok(_) => return Some(taken),
+                Err(seen) => now = seen,
+            }
+        }
+    }
 }
 
 impl Member<'_> {
@@ -138,6 +178,38 @@ impl Member<'_> {
         })
     }
 
+    /// Calls `each` for every particle of a stage in which each particle is computed alone, in
+    /// the order `order` gives them (storage indices), sharing the work by what it costs: every
+    /// thread starts on its own contiguous share of `order`, and a thread done with its share
+    /// takes chunks from the far end of the others'. For stages whose cost per particle differs
+    /// across the cloth (collisions: in P, the thread with the shoulders had a third more `finish`
+    /// work than the other). Which thread computes a particle changes nothing in the result. The
+    /// stage must end with [`Member::sync`] before the next balanced one.
+    pub fn balanced(&self, order: &[u32], mut each: impl FnMut(usize)) {
+        let (index, count) = (self.index, self.count);
+        let share = |t: usize| order.len() * t / count..order.len() * (t + 1) / count;
+        let mut visit = |t: usize, taken: std::ops::Range<u64>| {
+            let mine = &order[share(t)];
+            for &i in &mine[taken.start as usize..taken.end as usize] {
+                each(i as usize);
+            }
+        };
+        if count == 1 {
+            return visit(0, 0..order.len() as u64);
+        }
+        self.left[index]
+            .0
+            .store(share(index).len() as u64, Ordering::Release);
+        while let Some(taken) = self.left[index].take(true) {
+            visit(index, taken);
+        }
+        for other in (1..count).map(|k| (index + k) % count) {
+            while let Some(taken) = self.left[other].take(false) {
+                visit(other, taken);
+            }
+        }
+    }
+
     /// Waits for the whole team: ends a stage.
     pub fn sync(&self) {
         self.barrier.wait();
@@ -153,11 +225,13 @@ impl Member<'_> {
 pub fn run(body: impl Fn(&Member) + Sync) {
     let threads = rayon::current_num_threads().max(1);
     let barrier = SpinBarrier::new(threads);
+    let left: Vec<Left> = (0..threads).map(|_| Left::default()).collect();
     if threads == 1 {
         body(&Member {
             index: 0,
             count: 1,
             barrier: &barrier,
+            left: &left,
         });
         return;
     }
@@ -166,6 +240,7 @@ pub fn run(body: impl Fn(&Member) + Sync) {
             index: ctx.index(),
             count: ctx.num_threads(),
             barrier: &barrier,
+            left: &left,
         };
         if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| body(&member)))
         {
@@ -246,5 +321,69 @@ impl<T: Copy> Shared<T> {
     /// No thread writes any element in the current stage.
     pub unsafe fn read_all(&self) -> &[T] {
         std::slice::from_raw_parts(self.ptr, self.len)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every particle of a balanced stage is visited exactly once, whatever the team's size and
+    /// however uneven the work (the first particles cost far more, so the others' threads take
+    /// from their shares), stage after stage.
+    #[test]
+    fn a_balanced_stage_visits_every_particle_once() {
+        let order: Vec<u32> = (0..1000u32).rev().collect();
+        for threads in [1, 2, 3, 5] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a pool");
+            let visits: Vec<AtomicUsize> = (0..order.len()).map(|_| AtomicUsize::new(0)).collect();
+            let stolen = AtomicUsize::new(0);
+            pool.install(|| {
+                run(|m| {
+                    for _ in 0..4 {
+                        m.balanced(&order, |i| {
+                            visits[i].fetch_add(1, Ordering::Relaxed);
+                            let owner = order.len() - 1 - i;
+                            if owner * m.count / order.len() != m.index {
+                                stolen.fetch_add(1, Ordering::Relaxed);
+                            }
+                            if i >= 900 {
+                                std::thread::sleep(std::time::Duration::from_micros(200));
+                            }
+                        });
+                        m.sync();
+                    }
+                })
+            });
+            for (i, v) in visits.iter().enumerate() {
+                assert_eq!(
+                    v.load(Ordering::Relaxed),
+                    4,
+                    "particle {i} on {threads} threads"
+                );
+            }
+            if threads > 1 {
+                assert!(
+                    stolen.load(Ordering::Relaxed) > 0,
+                    "{threads} threads shared no work"
+                );
+            }
+        }
+    }
+
+    /// The owner takes from the front and another thread from the back, never the same position.
+    #[test]
+    fn owner_and_thief_take_disjoint_chunks() {
+        let left = Left::default();
+        left.0.store(100, Ordering::Relaxed);
+        assert_eq!(left.take(true), Some(0..32));
+        assert_eq!(left.take(false), Some(68..100));
+        assert_eq!(left.take(true), Some(32..64));
+        assert_eq!(left.take(false), Some(64..68));
+        assert_eq!(left.take(true), None);
+        assert_eq!(left.take(false), None);
     }
 }
