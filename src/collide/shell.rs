@@ -337,6 +337,48 @@ struct HashGrid {
     /// After a sparse build, the buckets it filled (the others are empty: start = end = 0);
     /// None after a full build.
     filled: Option<Vec<u32>>,
+    /// Cells in a dense box instead of hashed buckets, when the box has no more cells than the
+    /// table has buckets (a focused shell on the CPU; see [`Dense`]).
+    dense: Option<Dense>,
+    /// Each point's cell (a buffer kept between builds).
+    cells: Vec<IVec3>,
+}
+
+/// A dense box of cells: each cell's start in `items`, z fastest, so the cells a walk visits
+/// along z are one run of `items`, found by two neighbouring loads. Hashed buckets scatter the
+/// cells a walk visits over a table larger than a core's cache: loading their ranges was a
+/// quarter of P's shell tests.
+#[derive(Clone, Debug, Default)]
+struct Dense {
+    /// The box's first cell and its size in cells.
+    lo: IVec3,
+    size: IVec3,
+    /// Start of each cell's points in `items` (one more than the cells: the last is the end).
+    start: Vec<u32>,
+}
+
+impl Dense {
+    /// Calls `visit` with the points of the cells from `lo` to `hi`, in the order x, y, z (and
+    /// ascending within a cell), as the hashed walk visits them.
+    #[inline]
+    fn walk(&self, items: &[u32], lo: IVec3, hi: IVec3, mut visit: impl FnMut(usize)) {
+        let lo = lo.max(self.lo);
+        let hi = hi.min(self.lo + self.size - IVec3::ONE);
+        if lo.cmpgt(hi).any() {
+            return;
+        }
+        let at = lo - self.lo;
+        let span = (hi - lo).z as usize + 1;
+        for x in 0..=(hi - lo).x {
+            for y in 0..=(hi - lo).y {
+                let row = (((at.x + x) * self.size.y + at.y + y) * self.size.z + at.z) as usize;
+                let (first, end) = (self.start[row], self.start[row + span]);
+                for &i in &items[first as usize..end as usize] {
+                    visit(i as usize);
+                }
+            }
+        }
+    }
 }
 
 /// The bucket of cell `c` among a power-of-two number of `buckets` (wrapping 32-bit products,
@@ -386,6 +428,7 @@ impl HashGrid {
     /// in the same order as the full build; the starts are no prefix sum (not for the GPU).
     fn build_sparse(&mut self, keys: &[u32], cell: f32, buckets: usize) {
         self.cell = cell;
+        self.dense = None;
         let mut filled = match self.filled.take() {
             Some(f) if self.ranges.len() == buckets => f,
             _ => {
@@ -417,9 +460,57 @@ impl HashGrid {
         self.filled = Some(filled);
     }
 
+    /// The points of cells `cells` (`cells[i]`: point i's) sorted into a dense box of cells
+    /// ([`Dense`]) when the box has no more cells than `buckets`, else into the hashed buckets
+    /// as [`Self::build_sparse`] does. Each cell lists its points in ascending order either way.
+    fn build_cells(&mut self, cells: &[IVec3], cell: f32, buckets: usize) {
+        let (lo, hi) = cells.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
+            (lo.min(*c), hi.max(*c))
+        });
+        let size =
+            (hi.as_i64vec3() - lo.as_i64vec3() + glam::I64Vec3::ONE).max(glam::I64Vec3::ZERO);
+        if cells.is_empty() || size.x * size.y * size.z > buckets as i64 {
+            let keys: Vec<u32> = cells.iter().map(|&c| bucket(c, buckets) as u32).collect();
+            return self.build_sparse(&keys, cell, buckets);
+        }
+        self.cell = cell;
+        self.filled = None;
+        let size = size.as_ivec3();
+        let mut dense = self.dense.take().unwrap_or_default();
+        let index = |c: IVec3| {
+            let c = c - lo;
+            ((c.x * size.y + c.y) * size.z + c.z) as usize
+        };
+        // Counts, then each cell's end (a running sum), then the points placed from the last, so
+        // each cell's start is left where its first point went and its points ascend.
+        dense.start.clear();
+        dense
+            .start
+            .resize((size.x * size.y * size.z) as usize + 1, 0);
+        for &c in cells {
+            dense.start[index(c)] += 1;
+        }
+        let mut total = 0;
+        for s in &mut dense.start {
+            total += *s;
+            *s = total;
+        }
+        self.items.clear();
+        self.items.resize(cells.len(), 0);
+        for (i, &c) in cells.iter().enumerate().rev() {
+            let at = &mut dense.start[index(c)];
+            *at -= 1;
+            self.items[*at as usize] = i as u32;
+        }
+        dense.lo = lo;
+        dense.size = size;
+        self.dense = Some(dense);
+    }
+
     /// Counting sort of the points by their buckets `keys` (`keys[i]`: point i's).
     fn build_from_keys(&mut self, keys: &[u32], cell: f32, buckets: usize) {
         self.filled = None;
+        self.dense = None;
         self.cell = cell;
         self.ranges.clear();
         self.ranges.resize(buckets, [0, 0]);
@@ -461,6 +552,9 @@ impl HashGrid {
         let buckets = self.ranges.len();
         let lo = cell_index(a.min(b), self.cell).saturating_sub(IVec3::ONE);
         let hi = cell_index(a.max(b), self.cell).saturating_add(IVec3::ONE);
+        if let Some(dense) = &self.dense {
+            return dense.walk(&self.items, lo, hi, visit);
+        }
         for x in lo.x..=hi.x {
             for y in lo.y..=hi.y {
                 for z in lo.z..=hi.z {
@@ -478,6 +572,10 @@ impl HashGrid {
     fn near(&self, p: Vec3, mut visit: impl FnMut(usize)) {
         let buckets = self.ranges.len();
         let c = cell_index(p, self.cell);
+        if let Some(dense) = &self.dense {
+            let lo = c.saturating_sub(IVec3::ONE);
+            return dense.walk(&self.items, lo, c.saturating_add(IVec3::ONE), visit);
+        }
         let mut seen = [usize::MAX; 27];
         let mut n = 0;
         for dx in -1..=1 {
@@ -717,9 +815,9 @@ impl ShellCollider {
         if normals.is_some() {
             self.now_normal.resize(n, Vec3::ZERO);
         }
-        let mut keys = std::mem::take(&mut self.grid.keys);
-        keys.clear();
-        keys.resize(focus.active.len(), 0);
+        let mut cells = std::mem::take(&mut self.grid.cells);
+        cells.clear();
+        cells.resize(focus.active.len(), IVec3::ZERO);
         const CHUNK: usize = 1024;
         let pieces = Piece::split(
             &focus.active,
@@ -729,15 +827,15 @@ impl ShellCollider {
         let empty = (Vec3::MAX, Vec3::MIN, 0.0f32);
         let (lo, hi, fastest) = pieces
             .into_par_iter()
-            .zip(keys.par_chunks_mut(CHUNK))
-            .map(|(piece, keys)| {
+            .zip(cells.par_chunks_mut(CHUNK))
+            .map(|(piece, cells)| {
                 let Piece {
                     indices,
                     first,
                     arrays: [now, motion, normal],
                 } = piece;
                 let (mut lo, mut hi, mut fastest) = empty;
-                for (&i, key) in indices.iter().zip(keys) {
+                for (&i, c) in indices.iter().zip(cells) {
                     let i = i as usize;
                     let p = a[i].lerp(b[i], w);
                     let m = p - before[i];
@@ -746,7 +844,7 @@ impl ShellCollider {
                     if let Some((na, nb)) = normals {
                         normal[i - first] = na[i].lerp(nb[i], w).normalize_or(Vec3::Y);
                     }
-                    *key = key_of(p, cell, buckets);
+                    *c = cell_index(p, cell);
                     let start = p - m;
                     lo = lo.min(p).min(start);
                     hi = hi.max(p).max(start);
@@ -755,12 +853,12 @@ impl ShellCollider {
                 (lo, hi, fastest)
             })
             .reduce(|| empty, |x, y| (x.0.min(y.0), x.1.max(y.1), x.2.max(y.2)));
-        self.grid.build_sparse(&keys, cell, buckets);
-        // The grid lists positions in `keys`' order: map them back to the particles.
+        self.grid.build_cells(&cells, cell, buckets);
+        // The grid lists positions in `cells`' order: map them back to the particles.
         for item in &mut self.grid.items {
             *item = focus.active[*item as usize];
         }
-        self.grid.keys = keys;
+        self.grid.cells = cells;
         self.bounds = (lo, hi);
         self.fastest = fastest.sqrt().max(focus.left_out_fastest);
         true
@@ -1042,6 +1140,10 @@ impl ShellCollider {
             })
             .collect();
         particles.resize(most, far);
+        assert!(
+            self.grid.dense.is_none(),
+            "a focused shell's grid is not the GPU's (the GPU backend unfocuses every shell)"
+        );
         let mut grid: Vec<u32> = self.grid.ranges.iter().map(|r| r[0]).collect();
         grid.push(self.grid.items.len() as u32);
         grid.extend_from_slice(&self.grid.items);
@@ -1110,6 +1212,57 @@ mod tests {
         assert!(near.touches(Vec3::new(0.0, 1.02, 0.0), Vec3::new(0.0, 3.0, 0.0)));
         // Outside the lattice altogether.
         assert!(!near.touches(Vec3::splat(-9.0), Vec3::splat(-8.0)));
+    }
+
+    /// The dense box visits exactly the points of the cells walked, in the order x, y, z and
+    /// ascending within a cell (the order of the hashed walk without collisions), also where the
+    /// walk leaves the box; and a box with more cells than the table's buckets falls back to the
+    /// hash, which finds every point the dense box finds.
+    #[test]
+    fn a_dense_grid_walks_the_cells_in_the_hashed_walks_order() {
+        let cell = 0.1;
+        // A fixed scatter of points over a 1 × 0.6 × 0.3 m box (a simple linear congruence).
+        let mut seed = 12345u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let points: Vec<Vec3> = (0..400)
+            .map(|_| Vec3::new(next() - 0.5, next() * 0.6 + 1.0, next() * 0.3 - 0.1))
+            .collect();
+        let cells: Vec<IVec3> = points.iter().map(|p| cell_index(*p, cell)).collect();
+        let mut dense = HashGrid::default();
+        dense.build_cells(&cells, cell, 1 << 12);
+        assert!(dense.dense.is_some(), "10 × 6 × 3 cells fit 4 096 buckets");
+        let mut hashed = HashGrid::default();
+        hashed.build_cells(&cells, cell, 64);
+        assert!(hashed.dense.is_none(), "more cells than 64 buckets: hashed");
+        for (a, b) in [
+            (Vec3::new(0.0, 1.3, 0.05), Vec3::new(0.0, 1.3, 0.05)),
+            (Vec3::new(-0.45, 1.05, -0.09), Vec3::new(-0.3, 1.2, 0.0)),
+            (Vec3::new(0.42, 1.55, 0.17), Vec3::new(0.7, 1.9, 0.4)),
+            (Vec3::new(2.0, 2.0, 2.0), Vec3::new(2.1, 2.0, 2.0)),
+        ] {
+            let (lo, hi) = (
+                cell_index(a.min(b), cell) - IVec3::ONE,
+                cell_index(a.max(b), cell) + IVec3::ONE,
+            );
+            let mut expected: Vec<usize> = (0..points.len())
+                .filter(|&i| cells[i].cmpge(lo).all() && cells[i].cmple(hi).all())
+                .collect();
+            expected.sort_by_key(|&i| (cells[i].x, cells[i].y, cells[i].z, i));
+            let mut seen = Vec::new();
+            dense.near_segment(a, b, |i| seen.push(i));
+            assert_eq!(seen, expected, "path {a} → {b}");
+            let mut found = Vec::new();
+            hashed.near_segment(a, b, |i| found.push(i));
+            assert!(expected.iter().all(|i| found.contains(i)));
+            if a == b {
+                let mut around = Vec::new();
+                dense.near(a, |i| around.push(i));
+                assert_eq!(around, expected, "around {a}");
+            }
+        }
     }
 
     #[test]
