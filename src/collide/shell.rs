@@ -460,18 +460,30 @@ impl HashGrid {
         self.filled = Some(filled);
     }
 
-    /// The points of cells `cells` (`cells[i]`: point i's) sorted into a dense box of cells
-    /// ([`Dense`]) when the box has no more cells than `buckets`, else into the hashed buckets
-    /// as [`Self::build_sparse`] does. Each cell lists its points in ascending order either way.
-    fn build_cells(&mut self, cells: &[IVec3], cell: f32, buckets: usize) {
-        let (lo, hi) = cells.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
-            (lo.min(*c), hi.max(*c))
-        });
+    /// Points `ids` in cells `cells` (`cells[i]`: point `ids[i]`'s, within the box of cells
+    /// `lo..=hi`), sorted into a dense box of cells ([`Dense`]) when the box has no more cells
+    /// than `buckets`, else into the hashed buckets as [`Self::build_sparse`] does. Each cell
+    /// lists its points in the order of `cells` either way.
+    fn build_cells(
+        &mut self,
+        cells: &[IVec3],
+        ids: &[u32],
+        (lo, hi): (IVec3, IVec3),
+        cell: f32,
+        buckets: usize,
+    ) {
         let size =
             (hi.as_i64vec3() - lo.as_i64vec3() + glam::I64Vec3::ONE).max(glam::I64Vec3::ZERO);
-        if cells.is_empty() || size.x * size.y * size.z > buckets as i64 {
+        let hashed = |grid: &mut HashGrid| {
             let keys: Vec<u32> = cells.iter().map(|&c| bucket(c, buckets) as u32).collect();
-            return self.build_sparse(&keys, cell, buckets);
+            grid.build_sparse(&keys, cell, buckets);
+            // The grid lists positions in `cells`' order: map them to the points.
+            for item in &mut grid.items {
+                *item = ids[*item as usize];
+            }
+        };
+        if cells.is_empty() || size.x * size.y * size.z > buckets as i64 {
+            return hashed(self);
         }
         self.cell = cell;
         self.filled = None;
@@ -488,6 +500,11 @@ impl HashGrid {
             .start
             .resize((size.x * size.y * size.z) as usize + 1, 0);
         for &c in cells {
+            if c.cmplt(lo).any() || c.cmpgt(hi).any() {
+                // Outside the box it was told (a position that is not a number): hashed.
+                self.dense = Some(dense);
+                return hashed(self);
+            }
             dense.start[index(c)] += 1;
         }
         let mut total = 0;
@@ -497,10 +514,10 @@ impl HashGrid {
         }
         self.items.clear();
         self.items.resize(cells.len(), 0);
-        for (i, &c) in cells.iter().enumerate().rev() {
+        for (&id, &c) in ids.iter().zip(cells).rev() {
             let at = &mut dense.start[index(c)];
             *at -= 1;
-            self.items[*at as usize] = i as u32;
+            self.items[*at as usize] = id;
         }
         dense.lo = lo;
         dense.size = size;
@@ -853,11 +870,10 @@ impl ShellCollider {
                 (lo, hi, fastest)
             })
             .reduce(|| empty, |x, y| (x.0.min(y.0), x.1.max(y.1), x.2.max(y.2)));
-        self.grid.build_cells(&cells, cell, buckets);
-        // The grid lists positions in `cells`' order: map them back to the particles.
-        for item in &mut self.grid.items {
-            *item = focus.active[*item as usize];
-        }
+        // Every particle's cell lies within the cells of the box around the particles.
+        let cell_box = (cell_index(lo, cell), cell_index(hi, cell));
+        self.grid
+            .build_cells(&cells, &focus.active, cell_box, cell, buckets);
         self.grid.cells = cells;
         self.bounds = (lo, hi);
         self.fastest = fastest.sqrt().max(focus.left_out_fastest);
@@ -1231,11 +1247,15 @@ mod tests {
             .map(|_| Vec3::new(next() - 0.5, next() * 0.6 + 1.0, next() * 0.3 - 0.1))
             .collect();
         let cells: Vec<IVec3> = points.iter().map(|p| cell_index(*p, cell)).collect();
+        let ids: Vec<u32> = (0..points.len() as u32).collect();
+        let cell_box = cells.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
+            (lo.min(*c), hi.max(*c))
+        });
         let mut dense = HashGrid::default();
-        dense.build_cells(&cells, cell, 1 << 12);
+        dense.build_cells(&cells, &ids, cell_box, cell, 1 << 12);
         assert!(dense.dense.is_some(), "10 × 6 × 3 cells fit 4 096 buckets");
         let mut hashed = HashGrid::default();
-        hashed.build_cells(&cells, cell, 64);
+        hashed.build_cells(&cells, &ids, cell_box, cell, 64);
         assert!(hashed.dense.is_none(), "more cells than 64 buckets: hashed");
         for (a, b) in [
             (Vec3::new(0.0, 1.3, 0.05), Vec3::new(0.0, 1.3, 0.05)),

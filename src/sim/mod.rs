@@ -661,6 +661,7 @@ impl Simulation {
             listed,
             clearance,
             quiet: &self.quiet,
+            all_quiet: self.quiet.iter().all(|&q| q),
             external: &self.external,
         };
         let solver = &self.solver;
@@ -808,8 +809,9 @@ struct Stages<'a> {
     listed: Shared<u8>,
     /// Each particle's clearance from the quiet colliders (with collision passes).
     clearance: Shared<f32>,
-    /// Which colliders are quiet ([`Collider::is_quiet`]).
+    /// Which colliders are quiet ([`Collider::is_quiet`]), and whether all are.
     quiet: &'a [bool],
+    all_quiet: bool,
     /// Each particle's acceleration by the force fields (empty without).
     external: &'a [Vec4],
 }
@@ -887,6 +889,16 @@ impl Stages<'_> {
             }
             // SAFETY: particle i is this thread's alone in this stage.
             unsafe {
+                // Most of a garment is near no shell and clear of the quiet colliders: what
+                // follows would leave it as it is (read without its position).
+                if !first
+                    && self.all_quiet
+                    && (0..self.shells.len()).all(|k| self.listed.get(k * particles + i) == 0)
+                    && (self.colliders.is_empty()
+                        || self.clearance.get(i) >= b.delta.get(i).truncate().length())
+                {
+                    return;
+                }
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
                 let r = model.contact_radius[i];
