@@ -871,9 +871,9 @@ impl Stages<'_> {
         self.b.target.set(i, t);
     }
 
-    /// A collision pass inside the solve, for this thread's free particles: collisions and
-    /// friction on Δ as at the end of the substep, the characters' shells tested only against
-    /// each particle's nearby shell particles.
+    /// A collision pass inside the solve, for the free particles (shared out by their cost,
+    /// [`Member::balanced`]): collisions and friction on Δ as at the end of the substep, the
+    /// characters' shells tested only against each particle's nearby shell particles.
     ///
     /// The quiet colliders (static, swept, with an exact distance: a floor) are skipped for a
     /// particle whose displacement is shorter than its clearance, the least of their distances
@@ -953,8 +953,9 @@ impl Stages<'_> {
             .unwrap_or(f32::NEG_INFINITY)
     }
 
-    /// Ends the substep for this thread's free particles: long-range attachments to the pins,
-    /// collisions, then x += Δ and v = Δ/h; and, when `predict_next`, the next prediction.
+    /// Ends the substep for the free particles (shared out by their cost, [`Member::balanced`]):
+    /// long-range attachments to the pins, collisions, then x += Δ and v = Δ/h; and, when
+    /// `predict_next`, the next prediction.
     fn finish(&self, m: &Member, predict_next: bool) {
         let (model, b) = (self.model, &self.b);
         m.balanced(&model.storage_of, |i| {
