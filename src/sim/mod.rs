@@ -599,6 +599,8 @@ impl Simulation {
 
     /// Runs `count` substeps in one team region.
     fn run_substeps(&mut self, count: u32) {
+        self.solver
+            .prepare_for(&self.model, rayon::current_num_threads());
         let schedule = self.schedule();
         let buffers = solver::Buffers {
             x: Shared::new(&mut self.state.positions),
