@@ -524,7 +524,6 @@ impl HashGrid {
         for &c in cells {
             if c.cmplt(lo).any() || c.cmpgt(hi).any() {
                 // Outside the box it was told (a position that is not a number): hashed.
-                self.dense = Some(dense);
                 return hashed(self);
             }
             dense.start[index(c)] += 1;

@@ -5,7 +5,9 @@
 //! Why not a parallel iterator per stage: a substep has five to six stages of a few microseconds
 //! each, and waking sleeping pool threads for every one cost more than the work (measured: two
 //! threads were no faster than one on scene E). The static shares also make every run touch the
-//! same indices from the same thread, so results never depend on scheduling.
+//! same indices from the same thread, so results never depend on scheduling. Stages that compute
+//! each particle alone at a cost that varies over the cloth (collisions) share their particles by
+//! cost instead ([`Member::balanced`]): which thread computes a particle changes nothing there.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -164,9 +166,9 @@ impl Member<'_> {
     }
 
     /// This thread's particles: its share of every colour range. A colour is stored in grid
-    /// order, so the shares are the same region of the cloth in every colour, and every
-    /// per-particle stage gives a thread the particles its Gauss-Seidel passes update: the data
-    /// stays in that core's cache.
+    /// order, so the shares are the same region of the cloth in every colour, and the stages
+    /// that use them give a thread the particles its Gauss-Seidel passes update: the data stays
+    /// in that core's cache.
     pub fn particles<'r>(
         &self,
         colour_ranges: &'r [Range<usize>],

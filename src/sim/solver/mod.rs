@@ -77,25 +77,31 @@ struct Owned {
 
 impl Owned {
     fn new(model: &Model, threads: usize) -> Owned {
+        // Particle p's colour range.
+        let range = |p: usize| {
+            (model.colour_ranges.iter())
+                .find(|r| r.contains(&p))
+                .expect("every particle has a colour")
+        };
         // The thread that sweeps particle p: the share of its colour holding it, as
         // `Member::share` cuts a colour's range.
         let owner = |p: usize| {
-            let r = model
-                .colour_ranges
-                .iter()
-                .find(|r| r.contains(&p))
-                .expect("every particle has a colour");
+            let r = range(p);
             let len = r.end - r.start;
             (0..threads)
                 .rev()
                 .find(|&t| r.start + len * t / threads <= p)
                 .unwrap_or(0)
         };
-        let colour = |p: usize| model.colour_ranges.iter().position(|r| r.contains(&p));
         let mut lists = vec![Vec::new(); threads];
         for (k, s) in model.springs.iter().enumerate() {
             let (a, b) = (s.a as usize, s.b as usize);
-            let first = if colour(a) <= colour(b) { a } else { b };
+            // Colours are stored in order: the lower colour's range starts first.
+            let first = if range(a).start <= range(b).start {
+                a
+            } else {
+                b
+            };
             lists[owner(first)].push(k as u32);
         }
         let mut start = vec![0];
