@@ -70,9 +70,17 @@ pub fn penetration(
     let (near_lo, near_hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| {
         (lo.min(p), hi.max(p))
     });
-    for (t, tri) in triangles.iter().enumerate() {
-        let [a, b, c] = tri.map(|i| vertices[i as usize]);
-        let (lo, hi) = (a.min(b).min(c) - REACH, a.max(b).max(c) + REACH);
+    // Each triangle's box: a point farther from it than from the nearest triangle found so far
+    // cannot be nearer that triangle (most candidates are passed over on the box alone).
+    let boxes: Vec<(Vec3, Vec3)> = triangles
+        .iter()
+        .map(|tri| {
+            let [a, b, c] = tri.map(|i| vertices[i as usize]);
+            (a.min(b).min(c), a.max(b).max(c))
+        })
+        .collect();
+    for (t, &(lo, hi)) in boxes.iter().enumerate() {
+        let (lo, hi) = (lo - REACH, hi + REACH);
         if lo.cmpgt(near_hi).any() || hi.cmplt(near_lo).any() {
             continue;
         }
@@ -93,6 +101,11 @@ pub fn penetration(
         };
         let mut best = (REACH * REACH, None);
         for &t in candidates {
+            let (lo, hi) = boxes[t as usize];
+            let outside = (lo - p).max(p - hi).max(Vec3::ZERO);
+            if outside.length_squared() >= best.0 {
+                continue;
+            }
             let [i, j, k] = triangles[t as usize];
             let [a, b, c] = [i, j, k].map(|v| vertices[v as usize]);
             let w = closest_barycentric(p, a, b, c);

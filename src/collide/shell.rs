@@ -23,7 +23,7 @@
 //! distances, so the frames are the same bits as without the focus; a cape on a running
 //! figure's head no longer pays for its legs.
 
-use glam::{IVec3, Vec3, Vec4};
+use glam::{IVec3, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Values per frame at fractional frame `f`, linear between frames (the last frame holds; a
@@ -247,6 +247,136 @@ struct Focus {
     changed: bool,
 }
 
+/// What placing a focus's particles reads: the shell's frames (and normals), the focus's
+/// particles (ascending), where they start the substep, and the grid's lattice.
+struct Placing<'a> {
+    frames: &'a [Vec<Vec3>],
+    normals: &'a [Vec<Vec3>],
+    active: &'a [u32],
+    before: &'a [Vec3],
+    cell: f32,
+    buckets: usize,
+}
+
+impl Placing<'_> {
+    /// Each particle's position at fractional frame `to`, its motion from `before` and its
+    /// normal, into `[now, motion, normal]` (indexed by shell particle: only the focus's are
+    /// written), and their grid; the box around both ends of their paths and the longest
+    /// motion. None when the frames or `before` differ in size from the shell. `parallel`: on
+    /// the pool's threads (else on the calling thread, inside a team region); every number is
+    /// computed per particle, or is a minimum or maximum, so both give the same bits.
+    fn place(
+        &self,
+        to: f32,
+        [now, motion, normal]: [&mut Vec<Vec3>; 3],
+        grid: &mut HashGrid,
+        parallel: bool,
+    ) -> Option<((Vec3, Vec3), f32)> {
+        let (k, j, w) = frame_span(self.frames.len(), to);
+        let (a, b) = (&self.frames[k], &self.frames[j]);
+        let n = a.len();
+        if b.len() != n || self.before.len() != n {
+            return None;
+        }
+        let before = self.before;
+        now.resize(n, Vec3::ZERO);
+        motion.resize(n, Vec3::ZERO);
+        let normals = (!self.normals.is_empty()).then(|| (&self.normals[k], &self.normals[j]));
+        if normals.is_some() {
+            normal.resize(n, Vec3::ZERO);
+        }
+        let mut cells = std::mem::take(&mut grid.cells);
+        cells.clear();
+        cells.resize(self.active.len(), IVec3::ZERO);
+        const CHUNK: usize = 1024;
+        let pieces = Piece::split(self.active, CHUNK, [now, motion, normal]);
+        let cell = self.cell;
+        let empty = (Vec3::MAX, Vec3::MIN, 0.0f32);
+        let place = |(piece, cells): (Piece, &mut [IVec3])| {
+            let Piece {
+                indices,
+                first,
+                arrays: [now, motion, normal],
+            } = piece;
+            // In SIMD lanes (Vec3A): the same operations lane by lane, so the same bits as
+            // `Vec3::lerp`, `normalize_or` and `cell_index`, at a third of the divisions.
+            let lerp = |a: Vec3, b: Vec3| Vec3A::from(a) * (1.0 - w) + Vec3A::from(b) * w;
+            let (mut lo, mut hi) = (Vec3A::from(empty.0), Vec3A::from(empty.1));
+            let mut fastest = empty.2;
+            for (&i, c) in indices.iter().zip(cells) {
+                let i = i as usize;
+                let p = lerp(a[i], b[i]);
+                let m = p - Vec3A::from(before[i]);
+                now[i - first] = p.into();
+                motion[i - first] = m.into();
+                if let Some((na, nb)) = normals {
+                    normal[i - first] = lerp(na[i], nb[i]).normalize_or(Vec3A::Y).into();
+                }
+                *c = floor_cell(p / cell);
+                let start = p - m;
+                lo = lo.min(p).min(start);
+                hi = hi.max(p).max(start);
+                fastest = fastest.max(m.length_squared());
+            }
+            (Vec3::from(lo), Vec3::from(hi), fastest)
+        };
+        let merge =
+            |x: (Vec3, Vec3, f32), y: (Vec3, Vec3, f32)| (x.0.min(y.0), x.1.max(y.1), x.2.max(y.2));
+        let (lo, hi, fastest) = if parallel {
+            (pieces.into_par_iter())
+                .zip(cells.par_chunks_mut(CHUNK))
+                .map(place)
+                .reduce(|| empty, merge)
+        } else {
+            (pieces.into_iter())
+                .zip(cells.chunks_mut(CHUNK))
+                .map(place)
+                .fold(empty, merge)
+        };
+        // Every particle's cell lies within the cells of the box around the particles.
+        let cell_box = (cell_index(lo, cell), cell_index(hi, cell));
+        let (active, buckets) = (self.active, self.buckets);
+        let build = |grid: &mut HashGrid| grid.build_cells(&cells, active, cell_box, cell, buckets);
+        if parallel {
+            keeping_the_pool_awake(|| build(grid));
+        } else {
+            build(grid);
+        }
+        grid.cells = cells;
+        Some(((lo, hi), fastest.sqrt()))
+    }
+}
+
+/// A focused shell placed at the end of the next substep ahead of time
+/// ([`ShellCollider::place_ahead`]), with the buffers it is placed into.
+#[derive(Debug, Default)]
+struct Ahead {
+    /// Placed, and not taken yet.
+    ready: bool,
+    /// The substep it was placed for (fractional frames), with which focus and lattice.
+    span: (f32, f32),
+    focus: u64,
+    lattice: (f32, usize),
+    now: Vec<Vec3>,
+    motion: Vec<Vec3>,
+    normal: Vec<Vec3>,
+    grid: HashGrid,
+    bounds: (Vec3, Vec3),
+    fastest: f32,
+}
+
+/// The slot a team thread places a shell ahead into through a shared reference (one thread
+/// writes it inside `finish`; `advance` takes it between team regions). A copy of the shell
+/// starts with it empty.
+#[derive(Debug, Default)]
+struct AheadSlot(std::sync::Mutex<Ahead>);
+
+impl Clone for AheadSlot {
+    fn clone(&self) -> AheadSlot {
+        AheadSlot::default()
+    }
+}
+
 /// A run of a focus's particles (ascending indices from `first` on) with the stretch of each
 /// per-particle array their indices span: runs do not overlap, so each is moved on its own
 /// thread.
@@ -318,6 +448,12 @@ pub struct ShellCollider {
     /// On the CPU backend, the shell particles that can come near the garments this frame
     /// (see [`ShellCollider::focus`]); None: all of them.
     focus: Option<Focus>,
+    /// Counts the focuses made (a placement ahead is for one of them).
+    focus_made: u64,
+    /// The shell placed ahead for the next substep, if it was.
+    ahead: AheadSlot,
+    /// Substeps that took the shell placed ahead.
+    taken_ahead: u64,
     /// The box around the shell particles at both ends of the current substep: a path whose
     /// box stays two reaches away meets none of them (the broad phase of `resolve`).
     bounds: (Vec3, Vec3),
@@ -416,11 +552,18 @@ fn bucket(c: IVec3, buckets: usize) -> usize {
 /// 3 % of scene P). Equal for every input, NaN and out-of-range values included.
 #[inline]
 fn cell_index(p: Vec3, cell: f32) -> IVec3 {
+    floor_cell(Vec3A::from(p) / cell)
+}
+
+/// The lattice cell of a point already divided by the cell's width (`p / cell`, in either
+/// vector type: each lane's quotient is the same number).
+#[inline]
+fn floor_cell(q: impl Into<Vec3>) -> IVec3 {
     let floor = |x: f32| {
         let i = x as i32;
         i.saturating_sub((x < i as f32) as i32)
     };
-    let q = p / cell;
+    let q: Vec3 = q.into();
     IVec3::new(floor(q.x), floor(q.y), floor(q.z))
 }
 
@@ -656,6 +799,9 @@ impl ShellCollider {
             before: Vec::new(),
             fastest: 0.0,
             focus: None,
+            focus_made: 0,
+            ahead: AheadSlot::default(),
+            taken_ahead: 0,
             frames,
             bounds,
             grid: HashGrid::default(),
@@ -674,6 +820,11 @@ impl ShellCollider {
         // with its grid.
         if self.frames.len() == 1 && self.now_at.is_some() {
             self.now_at = Some(to);
+            return;
+        }
+        let cell = self.cell_for(garment_radius);
+        let buckets = Self::buckets_for(self.most_particles());
+        if self.take_ahead(from, to, cell, buckets) {
             return;
         }
         // Substeps follow one another: where the last one ended (`now`) is where this one
@@ -698,8 +849,6 @@ impl ShellCollider {
             }
         }
         self.now_at = Some(to);
-        let cell = self.cell_for(garment_radius);
-        let buckets = Self::buckets_for(self.most_particles());
         if self.focus.is_some() && self.advance_focused(to, &before, cell, buckets) {
             self.before = before;
             return;
@@ -770,6 +919,7 @@ impl ShellCollider {
     /// all costs no more than the focus). Fewer particles in the grid also means fewer others
     /// in the buckets a test walks (P's `finish` 10–15 % faster with 70 % of the mannequin).
     pub fn focus(&mut self, from: f32, near: &NearGarments, per_substep: f32) {
+        self.focus_made += 1;
         let (k, j, _) = frame_span(self.frames.len(), from);
         let (a, b) = (&self.frames[k], &self.frames[j]);
         if self.frames.len() == 1 || a.len() != b.len() || a.len() < PARALLEL_FROM {
@@ -829,6 +979,7 @@ impl ShellCollider {
 
     /// Every particle takes part again (the GPU backend reads them all).
     pub fn unfocus(&mut self) {
+        self.focus_made += 1;
         if self.focus.take().is_some() {
             // The particles left out were not moved: start from interpolated positions.
             self.now_at = None;
@@ -838,67 +989,96 @@ impl ShellCollider {
     /// [`Self::advance_in_one_pass`] for the focus's particles only; false when it does not
     /// apply. The same numbers for each of them as the full pass.
     fn advance_focused(&mut self, to: f32, before: &[Vec3], cell: f32, buckets: usize) -> bool {
-        let (k, j, w) = frame_span(self.frames.len(), to);
-        let (a, b) = (&self.frames[k], &self.frames[j]);
-        let n = a.len();
-        let Some(focus) = self.focus.as_mut() else {
+        let Some(focus) = &self.focus else {
             return false;
         };
-        if b.len() != n || before.len() != n {
+        let arrays = [&mut self.now, &mut self.motion, &mut self.now_normal];
+        let placed = Placing {
+            frames: &self.frames,
+            normals: &self.normals,
+            active: &focus.active,
+            before,
+            cell,
+            buckets,
+        }
+        .place(to, arrays, &mut self.grid, true);
+        let Some((bounds, fastest)) = placed else {
+            return false;
+        };
+        self.bounds = bounds;
+        self.fastest = fastest.max(focus.left_out_fastest);
+        true
+    }
+
+    /// Places the focus's particles at the end of the next substep (ending at fractional frame
+    /// `to`) ahead of time, while the team finishes the current one: one thread does it inside
+    /// `finish`, whose particles the others share out meanwhile, instead of every thread waiting
+    /// for it before the next substep (its grid's sort is serial). The next [`Self::advance`]
+    /// takes it when it asks for that substep with the same focus; anything else (a new focus,
+    /// another substep) places the shell as usual. Only focused shells, which only the CPU
+    /// backend has.
+    pub fn place_ahead(&self, to: f32, garment_radius: f32) {
+        let (Some(focus), Some(from)) = (&self.focus, self.now_at) else {
+            return;
+        };
+        let (cell, buckets) = (
+            self.cell_for(garment_radius),
+            Self::buckets_for(self.most_particles()),
+        );
+        let mut slot = self.ahead.0.lock().unwrap_or_else(|e| e.into_inner());
+        let ahead = &mut *slot;
+        ahead.ready = false;
+        let arrays = [&mut ahead.now, &mut ahead.motion, &mut ahead.normal];
+        let placed = Placing {
+            frames: &self.frames,
+            normals: &self.normals,
+            active: &focus.active,
+            before: &self.now,
+            cell,
+            buckets,
+        }
+        .place(to, arrays, &mut ahead.grid, false);
+        if let Some((bounds, fastest)) = placed {
+            ahead.ready = true;
+            ahead.span = (from, to);
+            ahead.focus = self.focus_made;
+            ahead.lattice = (cell, buckets);
+            ahead.bounds = bounds;
+            ahead.fastest = fastest.max(focus.left_out_fastest);
+        }
+    }
+
+    /// Takes the shell [`Self::place_ahead`] placed for the substep from `from` to `to`, when it
+    /// was placed for that substep, lattice and focus; false otherwise (then nothing changed).
+    fn take_ahead(&mut self, from: f32, to: f32, cell: f32, buckets: usize) -> bool {
+        let ahead = self.ahead.0.get_mut().unwrap_or_else(|e| e.into_inner());
+        let valid = ahead.ready
+            && ahead.span == (from, to)
+            && ahead.lattice == (cell, buckets)
+            && ahead.focus == self.focus_made
+            && self.now_at == Some(from)
+            && self.focus.as_ref().is_some_and(|f| !f.changed);
+        ahead.ready = false;
+        if !valid {
             return false;
         }
-        self.now.resize(n, Vec3::ZERO);
-        self.motion.resize(n, Vec3::ZERO);
-        let normals = (!self.normals.is_empty()).then(|| (&self.normals[k], &self.normals[j]));
-        if normals.is_some() {
-            self.now_normal.resize(n, Vec3::ZERO);
-        }
-        let mut cells = std::mem::take(&mut self.grid.cells);
-        cells.clear();
-        cells.resize(focus.active.len(), IVec3::ZERO);
-        const CHUNK: usize = 1024;
-        let pieces = Piece::split(
-            &focus.active,
-            CHUNK,
-            [&mut self.now, &mut self.motion, &mut self.now_normal],
-        );
-        let empty = (Vec3::MAX, Vec3::MIN, 0.0f32);
-        let (lo, hi, fastest) = pieces
-            .into_par_iter()
-            .zip(cells.par_chunks_mut(CHUNK))
-            .map(|(piece, cells)| {
-                let Piece {
-                    indices,
-                    first,
-                    arrays: [now, motion, normal],
-                } = piece;
-                let (mut lo, mut hi, mut fastest) = empty;
-                for (&i, c) in indices.iter().zip(cells) {
-                    let i = i as usize;
-                    let p = a[i].lerp(b[i], w);
-                    let m = p - before[i];
-                    now[i - first] = p;
-                    motion[i - first] = m;
-                    if let Some((na, nb)) = normals {
-                        normal[i - first] = na[i].lerp(nb[i], w).normalize_or(Vec3::Y);
-                    }
-                    *c = cell_index(p, cell);
-                    let start = p - m;
-                    lo = lo.min(p).min(start);
-                    hi = hi.max(p).max(start);
-                    fastest = fastest.max(m.length_squared());
-                }
-                (lo, hi, fastest)
-            })
-            .reduce(|| empty, |x, y| (x.0.min(y.0), x.1.max(y.1), x.2.max(y.2)));
-        // Every particle's cell lies within the cells of the box around the particles.
-        let cell_box = (cell_index(lo, cell), cell_index(hi, cell));
-        let grid = &mut self.grid;
-        keeping_the_pool_awake(|| grid.build_cells(&cells, &focus.active, cell_box, cell, buckets));
-        self.grid.cells = cells;
-        self.bounds = (lo, hi);
-        self.fastest = fastest.sqrt().max(focus.left_out_fastest);
+        // Where the shell is now starts the substep; what was placed ends it; the start's old
+        // buffers take the next placement.
+        std::mem::swap(&mut self.before, &mut self.now);
+        std::mem::swap(&mut self.now, &mut ahead.now);
+        std::mem::swap(&mut self.motion, &mut ahead.motion);
+        std::mem::swap(&mut self.now_normal, &mut ahead.normal);
+        std::mem::swap(&mut self.grid, &mut ahead.grid);
+        self.bounds = ahead.bounds;
+        self.fastest = ahead.fastest;
+        self.now_at = Some(to);
+        self.taken_ahead += 1;
         true
+    }
+
+    /// Substeps so far that took the shell [`Self::place_ahead`] placed for them.
+    pub fn taken_ahead(&self) -> u64 {
+        self.taken_ahead
     }
 
     /// Every other case (small shells, shells re-sampled per frame) step by step.
@@ -1355,6 +1535,75 @@ mod tests {
                 shell.advance(from, from + 0.05, 0.0025);
                 assert_eq!(shell.now, frame, "{n} particles from frame {from}");
                 assert!(shell.motion.iter().all(|m| *m == Vec3::ZERO));
+            }
+        }
+    }
+
+    /// A focused shell placed ahead during a substep is, when the next substep takes it, what
+    /// placing it then gives: every focused particle's position, motion and normal, the grid's
+    /// walks, the box and the fastest motion; a new focus in between leaves it untaken.
+    #[test]
+    fn a_shell_placed_ahead_is_the_shell_placed_then() {
+        // A sheet of shell particles over 0.6 × 0.6 m sliding and turning over three frames,
+        // with normals; the garments cover its middle.
+        let n = 80;
+        let frame = |f: f32| -> Vec<Vec3> {
+            (0..n * n)
+                .map(|i| {
+                    let (u, v) = ((i % n) as f32 / n as f32, (i / n) as f32 / n as f32);
+                    let bulge = 0.05 * (3.0 * u + f).sin() * (2.0 * v).cos();
+                    Vec3::new(0.6 * u + 0.01 * f, bulge + 0.02 * f * u, 0.6 * v)
+                })
+                .collect()
+        };
+        let mut shell = ShellCollider::new(
+            "s".into(),
+            0.01,
+            0.0,
+            (0..3).map(|f| frame(f as f32)).collect(),
+        );
+        shell.normals = (0..3)
+            .map(|f| {
+                frame(f as f32)
+                    .iter()
+                    .map(|p| (Vec3::Y + 0.1 * *p).normalize())
+                    .collect()
+            })
+            .collect();
+        let near = NearGarments::new(&[(Vec3::new(0.3, 0.0, 0.3), 0.12)], 0.04);
+        let per = 0.1;
+        shell.focus(0.0, &near, per);
+        let (active, all) = shell.focused().expect("focused");
+        assert!(active > 0 && active < all / 2, "{active} of {all}");
+        let r = 0.0025;
+        shell.advance(0.0, per, r);
+        for refocus in [false, true] {
+            let mut ahead = shell.clone();
+            ahead.place_ahead(2.0 * per, r);
+            if refocus {
+                ahead.focus(per, &near, per);
+            }
+            ahead.advance(per, 2.0 * per, r);
+            assert_eq!(ahead.taken_ahead(), if refocus { 0 } else { 1 });
+            let mut then = shell.clone();
+            if refocus {
+                then.focus(per, &near, per);
+            }
+            then.advance(per, 2.0 * per, r);
+            let focus = &then.focus.as_ref().expect("focused").active;
+            for &i in focus {
+                let i = i as usize;
+                assert_eq!(ahead.now[i], then.now[i], "particle {i}");
+                assert_eq!(ahead.motion[i], then.motion[i], "particle {i}");
+                assert_eq!(ahead.now_normal[i], then.now_normal[i], "particle {i}");
+            }
+            assert_eq!((ahead.bounds, ahead.fastest), (then.bounds, then.fastest));
+            for p in [Vec3::new(0.3, 0.0, 0.3), Vec3::new(0.25, 0.03, 0.38)] {
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                ahead.grid.near(p, |i| a.push(i));
+                then.grid.near(p, |i| b.push(i));
+                assert!(!b.is_empty());
+                assert_eq!(a, b, "around {p}");
             }
         }
     }

@@ -74,6 +74,9 @@ pub struct Simulation {
     /// so the particles near no shell (most of a garment) cost them one byte, not a list's 64
     /// (P's lists are 530 KB, more than a core's L2, read nine times a substep).
     listed: Vec<u8>,
+    /// The substep (count since the bake's start) whose prediction the last `finish` already
+    /// made (within [`Simulation::step_frame`] only).
+    predicted_at: Option<u64>,
     /// Each particle's clearance from the quiet colliders at the start of the substep (see
     /// [`Stages::contact_pass`]), kept between a substep's collision passes.
     clearance: Vec<f32>,
@@ -178,6 +181,7 @@ impl Simulation {
             pushes,
             nearby: Vec::new(),
             listed: Vec::new(),
+            predicted_at: None,
             clearance: Vec::new(),
             quiet: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
@@ -280,19 +284,28 @@ impl Simulation {
             && self.collider_motion.is_empty()
             && self.forces.is_none()
         {
-            self.run_substeps(self.substeps);
+            self.run_substeps(self.substeps, None, false);
         } else {
             // Characters, attachment targets and force fields change every substep: they
             // advance between team regions.
             self.focus_shells(true);
             for _ in 0..self.substeps {
-                self.substep();
+                self.substep_in_frame(true);
             }
+            self.predicted_at = None;
         }
     }
 
     /// Advances one substep.
     pub fn substep(&mut self) {
+        self.predicted_at = None;
+        self.substep_in_frame(false);
+    }
+
+    /// Advances one substep; `frame`: one of [`Self::step_frame`]'s, which may predict the next
+    /// substep in this one's `finish` (nothing outside the simulation moves the cloth between
+    /// them).
+    fn substep_in_frame(&mut self, frame: bool) {
         let start = std::time::Instant::now();
         self.focus_shells(false);
         self.advance_shells();
@@ -307,7 +320,16 @@ impl Simulation {
             f.accelerations(&self.model, x, v, t, &mut self.external);
             self.stage_times.lap(schedule::timed("forces"), pushed);
         }
-        self.run_substeps(1);
+        // The next substep's shells are placed during this one's `finish`, within the frame
+        // (a frame's first substep focuses them afresh).
+        let next = self.elapsed_substeps + 1;
+        let per_frame = self.substeps as u64;
+        let within = next % per_frame != 0;
+        let ahead = within.then(|| (next + 1) as f32 / self.substeps as f32);
+        // Without force fields or attachments, which change the next prediction between
+        // substeps, `finish` predicts the next substep of the frame too.
+        let predict = frame && within && self.forces.is_none() && self.attachments.list.is_empty();
+        self.run_substeps(1, ahead, predict);
         if self.forces.is_some() {
             // The substep moved each particle by v·h: the fields' work is Σ m a·v h.
             let h = self.step as f64;
@@ -597,8 +619,15 @@ impl Simulation {
         free_mass * self.gravity.length() as f64 * half_ulp * self.elapsed_substeps as f64
     }
 
-    /// Runs `count` substeps in one team region.
-    fn run_substeps(&mut self, count: u32) {
+    /// Runs `count` substeps in one team region; `place_ahead`: where the next substep ends
+    /// (fractional frame), when the last substep's `finish` places the shells for it.
+    /// `predict_after`: the last substep's `finish` predicts the one after it too (the next
+    /// region then starts without its prologue).
+    fn run_substeps(&mut self, count: u32, place_ahead: Option<f32>, predict_after: bool) {
+        // Predicted by the last region's `finish` (never at a frame's start).
+        let predicted = self.predicted_at.take() == Some(self.elapsed_substeps)
+            && self.elapsed_substeps % self.substeps as u64 != 0;
+        let contact_reach = self.largest_contact_radius();
         self.solver
             .prepare_for(&self.model, rayon::current_num_threads());
         let schedule = self.schedule();
@@ -665,6 +694,8 @@ impl Simulation {
             quiet: &self.quiet,
             all_quiet: self.quiet.iter().all(|&q| q),
             external: &self.external,
+            place_ahead,
+            contact_reach,
         };
         let solver = &self.solver;
         let particles = self.particle_collisions.as_ref();
@@ -682,8 +713,10 @@ impl Simulation {
             };
             // The prologue: predict the first substep; later predictions are fused into
             // `finish`.
-            stages.predict(m);
-            m.sync();
+            if !predicted {
+                stages.predict(m);
+                m.sync();
+            }
             lap(schedule::timed("predict"));
             for k in 0..count {
                 let mut first_pass = true;
@@ -710,7 +743,7 @@ impl Simulation {
                         ),
                         // Each particle alone: tethers, collisions, commit, next prediction.
                         schedule::Stage::Finish => {
-                            stages.finish(m, k + 1 < count);
+                            stages.finish(m, k + 1 < count || predict_after);
                             m.sync();
                         }
                     }
@@ -723,6 +756,9 @@ impl Simulation {
         });
         self.stage_times
             .add(&times.into_inner().expect("not poisoned"));
+        if predict_after {
+            self.predicted_at = Some(self.elapsed_substeps);
+        }
     }
 
     /// The static model (read-only: the solver validated it once).
@@ -816,6 +852,11 @@ struct Stages<'a> {
     all_quiet: bool,
     /// Each particle's acceleration by the force fields (empty without).
     external: &'a [Vec4],
+    /// Where the next substep ends (fractional frame), when `finish` places the shells for it
+    /// ahead ([`ShellCollider::place_ahead`]); and the largest contact radius they are gridded
+    /// for.
+    place_ahead: Option<f32>,
+    contact_reach: f32,
 }
 
 impl Stages<'_> {
@@ -960,7 +1001,15 @@ impl Stages<'_> {
     /// `predict_next`, the next prediction.
     fn finish(&self, m: &Member, predict_next: bool) {
         let (model, b) = (self.model, &self.b);
-        m.balanced(&model.storage_of, |i| {
+        // The leader places the shells for the next substep first (see `place_ahead`).
+        let place_ahead = || {
+            if let (Some(to), true) = (self.place_ahead, m.leads()) {
+                for s in self.shells {
+                    s.place_ahead(to, self.contact_reach);
+                }
+            }
+        };
+        m.balanced_after(&model.storage_of, place_ahead, |i| {
             if model.inv_mass[i] == 0.0 {
                 return;
             }

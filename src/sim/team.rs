@@ -187,7 +187,13 @@ impl Member<'_> {
     /// across the cloth (collisions: in P, the thread with the shoulders had a third more `finish`
     /// work than the other). Which thread computes a particle changes nothing in the result. The
     /// stage must end with [`Member::sync`] before the next balanced one.
-    pub fn balanced(&self, order: &[u32], mut each: impl FnMut(usize)) {
+    pub fn balanced(&self, order: &[u32], each: impl FnMut(usize)) {
+        self.balanced_after(order, || {}, each);
+    }
+
+    /// [`Self::balanced`], with `first` run on this thread before its first particle: work
+    /// of its own (placing a shell ahead), during which the others take its particles.
+    pub fn balanced_after(&self, order: &[u32], first: impl FnOnce(), mut each: impl FnMut(usize)) {
         let (index, count) = (self.index, self.count);
         let share = |t: usize| order.len() * t / count..order.len() * (t + 1) / count;
         let mut visit = |t: usize, taken: std::ops::Range<u64>| {
@@ -197,11 +203,13 @@ impl Member<'_> {
             }
         };
         if count == 1 {
+            first();
             return visit(0, 0..order.len() as u64);
         }
         self.left[index]
             .0
             .store(share(index).len() as u64, Ordering::Release);
+        first();
         while let Some(taken) = self.left[index].take(true) {
             visit(index, taken);
         }
