@@ -288,7 +288,9 @@ impl Simulation {
         } else {
             // Characters, attachment targets and force fields change every substep: they
             // advance between team regions.
+            let start = std::time::Instant::now();
             self.focus_shells(true);
+            self.stage_times.lap(schedule::timed("shells"), start);
             for _ in 0..self.substeps {
                 self.substep_in_frame(true);
             }
