@@ -77,6 +77,10 @@ pub struct Simulation {
     /// The substep (count since the bake's start) whose prediction the last `finish` already
     /// made (within [`Simulation::step_frame`] only).
     predicted_at: Option<u64>,
+    /// The substep count at which `outran` tells whether the focus holds (set by the last
+    /// substep's `finish`, within [`Simulation::step_frame`] only).
+    focus_checked_at: Option<u64>,
+    outran: std::sync::atomic::AtomicBool,
     /// Each particle's clearance from the quiet colliders at the start of the substep (see
     /// [`Stages::contact_pass`]), kept between a substep's collision passes.
     clearance: Vec<f32>,
@@ -182,6 +186,8 @@ impl Simulation {
             nearby: Vec::new(),
             listed: Vec::new(),
             predicted_at: None,
+            focus_checked_at: None,
+            outran: std::sync::atomic::AtomicBool::new(false),
             clearance: Vec::new(),
             quiet: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
@@ -284,7 +290,7 @@ impl Simulation {
             && self.collider_motion.is_empty()
             && self.forces.is_none()
         {
-            self.run_substeps(self.substeps, None, false);
+            self.run_substeps(self.substeps, None, false, false);
         } else {
             // Characters, attachment targets and force fields change every substep: they
             // advance between team regions.
@@ -295,12 +301,14 @@ impl Simulation {
                 self.substep_in_frame(true);
             }
             self.predicted_at = None;
+            self.focus_checked_at = None;
         }
     }
 
     /// Advances one substep.
     pub fn substep(&mut self) {
         self.predicted_at = None;
+        self.focus_checked_at = None;
         self.substep_in_frame(false);
     }
 
@@ -331,7 +339,7 @@ impl Simulation {
         // Without force fields or attachments, which change the next prediction between
         // substeps, `finish` predicts the next substep of the frame too.
         let predict = frame && within && self.forces.is_none() && self.attachments.list.is_empty();
-        self.run_substeps(1, ahead, predict);
+        self.run_substeps(1, ahead, predict, frame && within);
         if self.forces.is_some() {
             // The substep moved each particle by v·h: the fields' work is Σ m a·v h.
             let h = self.step as f64;
@@ -401,12 +409,14 @@ impl Simulation {
                 .map(|s| s.fastest_motion())
                 .fold(0.0, f32::max);
             let (positions, velocities) = (&self.state.positions, &self.state.velocities);
-            let holds = (positions.iter().zip(velocities))
-                .zip(&self.focus_origin)
-                .all(|((p, v), (o, allowed))| {
-                    let within = 2.0 * (v.length() * h + g * h * h + carried);
-                    p.distance(*o) + within <= *allowed
-                });
+            // Checked by the last substep's `finish` as it committed each particle, when it could.
+            let holds = if self.focus_checked_at == Some(self.elapsed_substeps) {
+                !self.outran.load(std::sync::atomic::Ordering::Relaxed)
+            } else {
+                (positions.iter().zip(velocities))
+                    .zip(&self.focus_origin)
+                    .all(|((p, v), o)| focus_holds_for(*p, *v, *o, (h, g, carried)))
+            };
             if holds {
                 return;
             }
@@ -625,7 +635,26 @@ impl Simulation {
     /// (fractional frame), when the last substep's `finish` places the shells for it.
     /// `predict_after`: the last substep's `finish` predicts the one after it too (the next
     /// region then starts without its prologue).
-    fn run_substeps(&mut self, count: u32, place_ahead: Option<f32>, predict_after: bool) {
+    /// `check_focus`: the last substep's `finish` checks whether the shells' focus holds for the
+    /// next.
+    fn run_substeps(
+        &mut self,
+        count: u32,
+        place_ahead: Option<f32>,
+        predict_after: bool,
+        check_focus: bool,
+    ) {
+        let n = self.state.positions.len();
+        let check_focus = check_focus
+            && self.focus_enabled
+            && self.focus_origin.len() == n
+            && self.shells.iter().any(|s| s.focused().is_some());
+        let carried = (self.shells.iter())
+            .map(|s| s.fastest_motion())
+            .fold(0.0, f32::max);
+        let terms = (self.step, self.gravity.length(), carried);
+        self.outran
+            .store(false, std::sync::atomic::Ordering::Relaxed);
         // Predicted by the last region's `finish` (never at a frame's start).
         let predicted = self.predicted_at.take() == Some(self.elapsed_substeps)
             && self.elapsed_substeps % self.substeps as u64 != 0;
@@ -698,6 +727,11 @@ impl Simulation {
             external: &self.external,
             place_ahead,
             contact_reach,
+            focus_check: check_focus.then_some(FocusCheck {
+                origins: &self.focus_origin,
+                terms,
+                outran: &self.outran,
+            }),
         };
         let solver = &self.solver;
         let particles = self.particle_collisions.as_ref();
@@ -761,6 +795,7 @@ impl Simulation {
         if predict_after {
             self.predicted_at = Some(self.elapsed_substeps);
         }
+        self.focus_checked_at = check_focus.then_some(self.elapsed_substeps);
     }
 
     /// The static model (read-only: the solver validated it once).
@@ -833,6 +868,40 @@ pub struct DrivenFrame {
     pub shells: Vec<Vec<Option<crate::collide::shell::ShellSnapshot>>>,
 }
 
+/// True when the focus holds for a garment particle at `p` moving at `v` before a substep of
+/// `h` seconds under gravity `g`: it is within what its `origin` allows it (its place and
+/// allowance when the focus was made), less twice its own motion in a substep and twice the
+/// shells' fastest (`carried`).
+#[inline]
+fn focus_holds_for(
+    p: Vec4,
+    v: Vec4,
+    (origin, allowed): (Vec4, f32),
+    (h, g, carried): (f32, f32, f32),
+) -> bool {
+    let within = 2.0 * (v.length() * h + g * h * h + carried);
+    p.distance(origin) + within <= allowed
+}
+
+/// The focus's check for the next substep ([`Simulation::focus_shells`]), made by `finish` as it
+/// commits each particle: `outran` is set when a particle is not within its origin's allowance.
+struct FocusCheck<'a> {
+    origins: &'a [(Vec4, f32)],
+    /// The substep, gravity and the shells' fastest motion in it.
+    terms: (f32, f32, f32),
+    outran: &'a std::sync::atomic::AtomicBool,
+}
+
+impl FocusCheck<'_> {
+    #[inline]
+    fn check(&self, i: usize, p: Vec4, v: Vec4) {
+        if !focus_holds_for(p, v, self.origins[i], self.terms) {
+            self.outran
+                .store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
 /// The per-particle stages of a substep, with what they read and write.
 struct Stages<'a> {
     model: &'a Model,
@@ -859,6 +928,8 @@ struct Stages<'a> {
     /// for.
     place_ahead: Option<f32>,
     contact_reach: f32,
+    /// Whether the shells' focus holds for the next substep, checked per particle.
+    focus_check: Option<FocusCheck<'a>>,
 }
 
 impl Stages<'_> {
@@ -1013,6 +1084,10 @@ impl Stages<'_> {
         };
         m.balanced_after(&model.storage_of, place_ahead, |i| {
             if model.inv_mass[i] == 0.0 {
+                if let Some(c) = &self.focus_check {
+                    // SAFETY: pinned and attached particles are never written in a stage.
+                    unsafe { c.check(i, b.x.get(i), self.velocities.get(i)) };
+                }
                 return;
             }
             // SAFETY: particle i is this thread's alone in this stage; the pins read by the
@@ -1052,6 +1127,9 @@ impl Stages<'_> {
                 b.x.set(i, x + d);
                 if let Some(v) = self.verlet {
                     self.velocities.set(i, v.velocity(d));
+                }
+                if let Some(c) = &self.focus_check {
+                    c.check(i, x + d, self.velocities.get(i));
                 }
                 if predict_next {
                     self.predict_one(i);
