@@ -312,9 +312,9 @@ impl Simulation {
         self.substep_in_frame(false);
     }
 
-    /// Advances one substep; `frame`: one of [`Self::step_frame`]'s, which may predict the next
-    /// substep in this one's `finish` (nothing outside the simulation moves the cloth between
-    /// them).
+    /// Advances one substep; `frame`: one of [`Self::step_frame`]'s, whose `finish` may predict
+    /// the next substep and check the shells' focus for it (nothing outside the simulation moves
+    /// the cloth between them).
     fn substep_in_frame(&mut self, frame: bool) {
         let start = std::time::Instant::now();
         self.focus_shells(false);
@@ -401,21 +401,17 @@ impl Simulation {
         if !self.focus_enabled || !self.shells.iter().any(|s| s.can_focus()) {
             return;
         }
-        let (h, g) = (self.step, self.gravity.length());
+        let g = self.gravity.length();
         if !frame_start && self.focus_origin.len() == self.state.positions.len() {
-            let carried = self
-                .shells
-                .iter()
-                .map(|s| s.fastest_motion())
-                .fold(0.0, f32::max);
-            let (positions, velocities) = (&self.state.positions, &self.state.velocities);
             // Checked by the last substep's `finish` as it committed each particle, when it could.
             let holds = if self.focus_checked_at == Some(self.elapsed_substeps) {
                 !self.outran.load(std::sync::atomic::Ordering::Relaxed)
             } else {
+                let terms = self.focus_terms();
+                let (positions, velocities) = (&self.state.positions, &self.state.velocities);
                 (positions.iter().zip(velocities))
                     .zip(&self.focus_origin)
-                    .all(|((p, v), o)| focus_holds_for(*p, *v, *o, (h, g, carried)))
+                    .all(|((p, v), o)| focus_holds_for(*p, *v, *o, terms))
             };
             if holds {
                 return;
@@ -439,6 +435,15 @@ impl Simulation {
         for s in &mut self.shells {
             s.focus(from, &near, per_substep);
         }
+    }
+
+    /// What [`focus_holds_for`] allows for besides each particle's own motion: the substep,
+    /// gravity and the shells' fastest motion in the current substep.
+    fn focus_terms(&self) -> (f32, f32, f32) {
+        let carried = (self.shells.iter())
+            .map(|s| s.fastest_motion())
+            .fold(0.0, f32::max);
+        (self.step, self.gravity.length(), carried)
     }
 
     /// Moves the characters' shells to the end of the coming substep.
@@ -649,10 +654,7 @@ impl Simulation {
             && self.focus_enabled
             && self.focus_origin.len() == n
             && self.shells.iter().any(|s| s.focused().is_some());
-        let carried = (self.shells.iter())
-            .map(|s| s.fastest_motion())
-            .fold(0.0, f32::max);
-        let terms = (self.step, self.gravity.length(), carried);
+        let terms = self.focus_terms();
         self.outran
             .store(false, std::sync::atomic::Ordering::Relaxed);
         // Predicted by the last region's `finish` (never at a frame's start).
