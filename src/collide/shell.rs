@@ -153,9 +153,9 @@ pub fn listed(list: &Nearby) -> u8 {
 /// around the particle's), so a point within that distance of a particle lies in a marked cell.
 /// A bit per cell, a row of cells along x in one or two words, and one box of cells marked per
 /// occupied cell rather than a cube per particle: P's 4 148 particles made 930 000 marks of a
-/// byte each in a lattice of 10 500 cells per focus on average, 0.29 ms on the pool's threads;
-/// now 0.17 ms on one (the blanket's 0.10–0.16 ms → 0.06), with 0.4 % more shell particles in
-/// the focus. (The selection that follows then wakes the pool: 0.03–0.04 ms of the gain goes.)
+/// byte each in a lattice of 10 500 cells per focus on average; lattice and selection took
+/// 0.52 ms per focus, now 0.36 (the blanket's 0.29 → 0.23), with 0.3 % more shell particles in
+/// the focus.
 pub struct NearGarments {
     /// The inverse of the lattice's cell width: cells are found by multiplying by it (a mapping
     /// of its own, the same in marking and testing, and monotone, so the marks stay
@@ -210,33 +210,50 @@ impl NearGarments {
         // 10 500 cells), and one box per occupied cell marks at most a few cells more.
         let clamp = |c: IVec3| c.clamp(IVec3::ZERO, size - IVec3::ONE);
         let index = |c: IVec3| ((c.z * size.y + c.y) * size.x + c.x) as usize;
-        let mut box_of = vec![u32::MAX; (size.x * size.y * size.z) as usize];
-        let mut boxes: Vec<(IVec3, IVec3)> = Vec::new();
-        for &(p, distance) in points {
-            let cube = (
-                clamp(cell_of(p - distance) - origin),
-                clamp(cell_of(p + distance) - origin),
-            );
-            let at = &mut box_of[index(clamp(cell_of(p) - origin))];
-            match boxes.get_mut(*at as usize) {
-                Some((a, b)) => (*a, *b) = (a.min(cube.0), b.max(cube.1)),
-                None => {
-                    *at = boxes.len() as u32;
-                    boxes.push(cube);
-                }
-            }
-        }
-        let mut marked = vec![0; words * (size.y * size.z) as usize];
-        for (a, b) in boxes {
-            for z in a.z..=b.z {
-                for y in a.y..=b.y {
-                    let row = (z * size.y + y) as usize * words;
-                    for (w, bits) in bit_range(a.x as usize, b.x as usize) {
-                        marked[row + w] |= bits;
+        let cells = (size.x * size.y * size.z) as usize;
+        let len = words * (size.y * size.z) as usize;
+        let mark = |points: &[(Vec3, f32)]| {
+            let mut box_of = vec![u32::MAX; cells];
+            let mut boxes: Vec<(IVec3, IVec3)> = Vec::new();
+            for &(p, distance) in points {
+                let cube = (
+                    clamp(cell_of(p - distance) - origin),
+                    clamp(cell_of(p + distance) - origin),
+                );
+                let at = &mut box_of[index(clamp(cell_of(p) - origin))];
+                match boxes.get_mut(*at as usize) {
+                    Some((a, b)) => (*a, *b) = (a.min(cube.0), b.max(cube.1)),
+                    None => {
+                        *at = boxes.len() as u32;
+                        boxes.push(cube);
                     }
                 }
             }
-        }
+            let mut marked = vec![0u64; len];
+            for (a, b) in boxes {
+                for z in a.z..=b.z {
+                    for y in a.y..=b.y {
+                        let row = (z * size.y + y) as usize * words;
+                        for (w, bits) in bit_range(a.x as usize, b.x as usize) {
+                            marked[row + w] |= bits;
+                        }
+                    }
+                }
+            }
+            marked
+        };
+        // Halves of the garments on the pool's threads, each into a lattice of its own, then
+        // joined (a mark is a mark whichever thread made it; the boxes of a cell split between
+        // the halves mark no more than the one box).
+        let half = points.len().div_ceil(2).max(1024);
+        let marked = points
+            .par_chunks(half)
+            .map(mark)
+            .reduce_with(|mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| *a |= b);
+                a
+            })
+            .unwrap_or_else(|| vec![0; len]);
         NearGarments {
             per_cell,
             origin,
