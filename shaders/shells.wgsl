@@ -37,6 +37,7 @@ fn shell_at(s: u32, substep: u32) -> ShellAt {
 
 struct FirstHit {
     t: f32,
+    off: f32,
     j: u32,
     found: bool,
 }
@@ -58,8 +59,11 @@ fn shell_first_visit(at: ShellAt, j: u32, x: vec3<f32>, d: vec3<f32>, reach: f32
     if (dot(crossing, crossing) >= reach * reach) {
         return;
     }
-    if (!(*best).found || t < (*best).t) {
-        *best = FirstHit(t, j, true);
+    // Ties: nearest the particle's centre, then the lowest index (as the CPU).
+    let off = dot(crossing, crossing);
+    let b = *best;
+    if (!b.found || t < b.t || (t == b.t && (off < b.off || (off == b.off && j < b.j)))) {
+        *best = FirstHit(t, off, j, true);
     }
 }
 
@@ -68,27 +72,27 @@ struct PushOut {
     total: vec3<f32>,
     skin: vec3<f32>,
     contacts: u32,
-    // The nearest candidates within two reaches, sorted by squared distance (when listing).
-    listing: bool,
+    // The nearest candidates within two reaches of where the gathering looked, sorted by
+    // squared distance, then index (Nearest in shell.rs).
     listed: u32,
     near: array<u32, 16>,
     far: array<f32, 16>,
 }
 
-fn push_out_at(p: vec3<f32>, listing: bool) -> PushOut {
+fn push_out_at(p: vec3<f32>) -> PushOut {
     var acc: PushOut;
     acc.p = p;
     acc.total = vec3<f32>(0.0);
     acc.skin = vec3<f32>(0.0);
     acc.contacts = 0u;
-    acc.listing = listing;
     acc.listed = 0u;
     return acc;
 }
 
-// Writes the list kept while pushing out to `shell_nearby` at `at_list` (NO_ENTRY past its end).
+// Writes the gathered list to `shell_nearby` at `at_list` (NO_ENTRY past its end), unless
+// that is NO_LIST.
 fn write_nearby(acc: PushOut, at_list: u32) {
-    if (!acc.listing) {
+    if (at_list == NO_LIST) {
         return;
     }
     for (var k = 0u; k < NEARBY; k++) {
@@ -96,23 +100,45 @@ fn write_nearby(acc: PushOut, at_list: u32) {
     }
 }
 
-// Push-out from one candidate (ShellCollider::push_out).
+// (d2, j) before entry k of the list.
+fn shell_before(acc: ptr<function, PushOut>, k: u32, d2: f32, j: u32) -> bool {
+    let f = (*acc).far[k];
+    return d2 < f || (d2 == f && j < (*acc).near[k]);
+}
+
+// Gathering: candidate j into the sorted list when within two reaches of `p` (Nearest::insert).
+fn shell_gather_visit(at: ShellAt, j: u32, p: vec3<f32>, reach: f32, acc: ptr<function, PushOut>) {
+    let d = p - shell_particle[at.particles + j].position.xyz;
+    let dist2 = dot(d, d);
+    if (dist2 >= 4.0 * reach * reach) {
+        return;
+    }
+    if ((*acc).listed == NEARBY && !shell_before(acc, NEARBY - 1u, dist2, j)) {
+        return;
+    }
+    var k = (*acc).listed;
+    while (k > 0u && shell_before(acc, k - 1u, dist2, j)) {
+        k = k - 1u;
+    }
+    if (k > 0u && (*acc).near[k - 1u] == j) {
+        return;
+    }
+    var m = min((*acc).listed, NEARBY - 1u);
+    while (m > k) {
+        (*acc).far[m] = (*acc).far[m - 1u];
+        (*acc).near[m] = (*acc).near[m - 1u];
+        m = m - 1u;
+    }
+    (*acc).far[k] = dist2;
+    (*acc).near[k] = j;
+    (*acc).listed = min((*acc).listed + 1u, NEARBY);
+}
+
+// Push-out from one candidate (ShellCollider::push_from).
 fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>) {
     let q = shell_particle[at.particles + j];
     let d = (*acc).p - q.position.xyz;
     let dist2 = dot(d, d);
-    if ((*acc).listing && dist2 < 4.0 * reach * reach
-        && ((*acc).listed < NEARBY || dist2 < (*acc).far[NEARBY - 1u])) {
-        var k = min((*acc).listed, NEARBY - 1u);
-        while (k > 0u && (*acc).far[k - 1u] > dist2) {
-            (*acc).far[k] = (*acc).far[k - 1u];
-            (*acc).near[k] = (*acc).near[k - 1u];
-            k = k - 1u;
-        }
-        (*acc).far[k] = dist2;
-        (*acc).near[k] = j;
-        (*acc).listed = min((*acc).listed + 1u, NEARBY);
-    }
     if (dist2 >= reach * reach) {
         return;
     }
@@ -136,14 +162,35 @@ fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>
     (*acc).contacts = (*acc).contacts + 1u;
 }
 
+// Pushes out of the gathered list, nearest first.
+fn shell_push_listed(at: ShellAt, reach: f32, acc: ptr<function, PushOut>) {
+    if ((*acc).listed == 0u || (*acc).far[0] >= reach * reach) {
+        return; // in reach of none
+    }
+    for (var k = 0u; k < (*acc).listed; k++) {
+        shell_push_visit(at, (*acc).near[k], reach, acc);
+    }
+}
+
+// A second round is due (ShellCollider::push_out): the list is full and the pushes moved the
+// particle near candidates past its end; the list is cleared for it.
+fn shell_again(acc: ptr<function, PushOut>, start: vec3<f32>, reach: f32) -> bool {
+    let moved = distance((*acc).p, start);
+    let again = (*acc).listed == NEARBY && (*acc).far[NEARBY - 1u] < (reach + moved) * (reach + moved);
+    if (again) {
+        (*acc).listed = 0u;
+    }
+    return again;
+}
+
 fn shell_items(at: ShellAt, b: u32) -> vec2<u32> {
     let items = at.grid + at.info.table + 1u;
     return vec2<u32>(items + shell_grid[at.grid + b], items + shell_grid[at.grid + b + 1u]);
 }
 
-// Push-out over the 27 cells around `p` (HashGrid::near: each bucket once).
-fn shell_push_near(at: ShellAt, reach: f32, acc: ptr<function, PushOut>) {
-    let c = vec3<i32>(floor((*acc).p / at.info.cell));
+// Gathering over the 27 cells around `centre` (HashGrid::near: each bucket once), from `p`.
+fn shell_gather_near(at: ShellAt, centre: vec3<f32>, p: vec3<f32>, reach: f32, acc: ptr<function, PushOut>) {
+    let c = vec3<i32>(floor(centre / at.info.cell));
     var seen: array<u32, 27>;
     var n = 0u;
     for (var dx = -1; dx <= 1; dx++) {
@@ -161,7 +208,7 @@ fn shell_push_near(at: ShellAt, reach: f32, acc: ptr<function, PushOut>) {
                 n = n + 1u;
                 let range = shell_items(at, b);
                 for (var k = range.x; k < range.y; k++) {
-                    shell_push_visit(at, shell_grid[k], reach, acc);
+                    shell_gather_visit(at, shell_grid[k], p, reach, acc);
                 }
             }
         }
@@ -223,22 +270,30 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
             }
         }
         if (count <= SHELL_FOUND) {
-            var best = FirstHit(0.0, 0u, false);
+            var best = FirstHit(0.0, 0.0, 0u, false);
             for (var k = 0u; k < count; k++) {
                 shell_first_visit(at, found[k], x3, d, reach, &best);
             }
             if (best.found) {
                 p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
             }
-            var acc = push_out_at(p, list != NO_LIST);
+            var acc = push_out_at(p);
             for (var k = 0u; k < count; k++) {
-                shell_push_visit(at, found[k], reach, &acc);
+                shell_gather_visit(at, found[k], p, reach, &acc);
             }
             write_nearby(acc, list);
+            shell_push_listed(at, reach, &acc);
+            if (shell_again(&acc, p, reach)) {
+                let q = acc.p;
+                for (var k = 0u; k < count; k++) {
+                    shell_gather_visit(at, found[k], q, reach, &acc);
+                }
+                shell_push_listed(at, reach, &acc);
+            }
             return shell_finish(at, x3, acc);
         }
         // Too many candidates to keep: trace with a second walk over the same cells.
-        var best = FirstHit(0.0, 0u, false);
+        var best = FirstHit(0.0, 0.0, 0u, false);
         for (var cx = lo.x; cx <= hi.x; cx++) {
             for (var cy = lo.y; cy <= hi.y; cy++) {
                 for (var cz = lo.z; cz <= hi.z; cz++) {
@@ -253,9 +308,14 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
             p = x3 + d * best.t + shell_particle[at.particles + best.j].motion.xyz * (1.0 - best.t);
         }
     }
-    var acc = push_out_at(p, list != NO_LIST);
-    shell_push_near(at, reach, &acc);
+    var acc = push_out_at(p);
+    shell_gather_near(at, p, p, reach, &acc);
     write_nearby(acc, list);
+    shell_push_listed(at, reach, &acc);
+    if (shell_again(&acc, p, reach)) {
+        shell_gather_near(at, p, acc.p, reach, &acc);
+        shell_push_listed(at, reach, &acc);
+    }
     return shell_finish(at, x3, acc);
 }
 
@@ -267,7 +327,7 @@ fn shell_resolve_nearby(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, ra
     }
     let at = shell_at(s, substep);
     let reach = at.info.radius + radius;
-    var acc = push_out_at(x.xyz + delta.xyz, false);
+    var acc = push_out_at(x.xyz + delta.xyz);
     for (var k = 0u; k < NEARBY; k++) {
         let j = shell_nearby[list + k];
         if (j == NO_ENTRY) {

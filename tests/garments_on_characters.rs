@@ -1,9 +1,10 @@
 //! Garments against characters (CPU backend): cloth dropped on the mannequin's stool and on the
 //! mannequin raising its arms never sinks more than half a shell particle radius into the body's
 //! particle layer; the shell cache is reused by the second bake; a ball thrown through a curtain
-//! faster than its shell is thick catches (and tears) the cloth with the swept test, and
-//! swallows it without (the report's count against the ball's own mesh agrees); the GPU resolves shells as the CPU does, with collision passes and for a
-//! character whose topology changes too.
+//! faster than its shell is thick catches (and tears) the cloth, and a faster one swallows it
+//! unless the test is swept (the report's count against the ball's own mesh agrees); the GPU
+//! resolves shells as the CPU does, with collision passes and for a character whose topology
+//! changes too.
 
 mod common;
 
@@ -191,16 +192,16 @@ fn ball_obj(centre: glam::Vec3, radius: f32) -> String {
     text
 }
 
-#[test]
-fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_without_it() {
-    // A 0.15 m ball hits a curtain pinned at its top corners at 12 m/s and stops 0.2 m past it:
-    // 2 cm per substep relative to the cloth, more than the shell's contact reach (1 cm + the
-    // cloth's 0.25 cm), so the end-point push alone lets cloth into the ball. With the swept
-    // test the cloth is caught on the ball's surface and tears instead.
-    let dir = common::temp_dir();
-    let frames_dir = dir.path().join("ball");
-    std::fs::create_dir(&frames_dir).unwrap();
-    let centre = |k: u32| glam::Vec3::new(0.0, 1.0, -0.6 + 0.2 * k.min(4) as f32);
+/// A ball of 0.15 m thrown at a curtain pinned at its top corners, moving `per_frame` metres a
+/// frame (60 fps, 10 substeps) from 0.6 m before the curtain until it is 0.2 m or more past
+/// it: per frame, the curtain's particles inside the ball's sphere and inside its mesh (the
+/// report's count), and the springs torn.
+fn throw_a_ball(dir: &Path, per_frame: f32, swept: bool) -> (Vec<usize>, Vec<u64>, u64) {
+    let stops = (0.8 / per_frame - 1e-4).ceil() as u32;
+    let centre = |k: u32| glam::Vec3::new(0.0, 1.0, -0.6 + per_frame * k.min(stops) as f32);
+    let name = format!("ball_{}_{swept}", (per_frame * 1000.0).round());
+    let frames_dir = dir.join(&name);
+    std::fs::create_dir_all(&frames_dir).unwrap();
     for k in 0..=8 {
         std::fs::write(
             frames_dir.join(format!("ball_{k:04}.obj")),
@@ -208,76 +209,89 @@ fn a_ball_thrown_through_a_curtain_tears_it_with_the_swept_test_and_swallows_it_
         )
         .unwrap();
     }
-    let inside_per_frame = |swept: bool| -> (Vec<usize>, u64, Vec<u64>) {
-        let text = format!(
-            r#"{{ "frames": 8, "backend": "cpu", "gravity": [0, 0, 0], "swept_collisions": {swept},
-                  "garments": [{{ "name": "curtain", "resolution": [31, 31], "size": [1, 1],
-                                  "position": [0, 1, 0], "rotation": [90, 0, 0], "pins": [[0, 0], [-1, 0]],
-                                  "stiffness": {{ "stretch": 2000 }}, "tear_strain": 0.6 }}],
-                  "characters": [{{ "name": "ball", "file": "ball", "sequence_fps": 60, "friction": 0 }}],
-                  "output": {{ "gltf": "none" }} }}"#
+    let text = format!(
+        r#"{{ "frames": 8, "backend": "cpu", "gravity": [0, 0, 0], "swept_collisions": {swept},
+              "garments": [{{ "name": "curtain", "resolution": [31, 31], "size": [1, 1],
+                              "position": [0, 1, 0], "rotation": [90, 0, 0], "pins": [[0, 0], [-1, 0]],
+                              "stiffness": {{ "stretch": 2000 }}, "tear_strain": 0.6 }}],
+              "characters": [{{ "name": "ball", "file": "{name}", "sequence_fps": 60, "friction": 0 }}],
+              "output": {{ "gltf": "none" }} }}"#
+    );
+    common::write(dir, &format!("{name}.json"), &text);
+    let out_dir = format!("{name}_out");
+    let out = common::drape(dir, &["bake", &format!("{name}.json"), "--out", &out_dir]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join(&out_dir).join("report.json")).unwrap(),
+    )
+    .unwrap();
+    let inside = (1..=8)
+        .map(|k| {
+            let obj = dir.join(format!("{out_dir}/obj/curtain_{k:04}.obj"));
+            std::fs::read_to_string(obj)
+                .unwrap()
+                .lines()
+                .filter_map(|l| l.strip_prefix("v "))
+                .map(|l| {
+                    let v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                    glam::Vec3::new(v[0], v[1], v[2])
+                })
+                .filter(|p| p.distance(centre(k)) < 0.15)
+                .count()
+        })
+        .collect();
+    let in_mesh = report["mesh_penetrations_per_frame"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["inside"][0].as_u64().unwrap())
+        .collect();
+    (inside, in_mesh, report["torn_springs"].as_u64().unwrap())
+}
+
+#[test]
+fn a_ball_thrown_through_a_curtain_is_kept_out_of_it_and_a_faster_one_mostly_by_the_swept_test() {
+    // At 12 m/s the ball moves 2 cm a substep against the cloth, more than the shell's contact
+    // reach (1 cm + the cloth's 0.25 cm). The end-point push alone catches the cloth all the
+    // same since it pushes nearest first (pushing in the grid's order, it let 41 of the 961
+    // particles into the ball); the swept test catches it too, and the caught cloth tears.
+    let dir = common::temp_dir();
+    for swept in [true, false] {
+        let (inside, in_mesh, torn) = throw_a_ball(dir.path(), 0.2, swept);
+        eprintln!(
+            "12 m/s, swept {swept}: inside the ball {inside:?}, its mesh {in_mesh:?}, {torn} torn"
         );
-        let name = format!("swept_{swept}");
-        common::write(dir.path(), &format!("{name}.json"), &text);
-        let out = common::drape(
-            dir.path(),
-            &["bake", &format!("{name}.json"), "--out", &name],
+        assert!(inside.iter().all(|&n| n == 0), "swept {swept}: {inside:?}");
+        assert!(
+            in_mesh.iter().all(|&n| n == 0),
+            "swept {swept}: {in_mesh:?}"
         );
-        assert!(out.status.success(), "{}", common::stderr(&out));
-        let report: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(dir.path().join(&name).join("report.json")).unwrap(),
-        )
-        .unwrap();
-        let inside = (1..=8)
-            .map(|k| {
-                let obj = dir.path().join(format!("{name}/obj/curtain_{k:04}.obj"));
-                std::fs::read_to_string(obj)
-                    .unwrap()
-                    .lines()
-                    .filter_map(|l| l.strip_prefix("v "))
-                    .map(|l| {
-                        let v: Vec<f32> =
-                            l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-                        glam::Vec3::new(v[0], v[1], v[2])
-                    })
-                    .filter(|p| p.distance(centre(k)) < 0.15)
-                    .count()
-            })
-            .collect();
-        // The report's count against the ball's own mesh (within 5 cm of its surface).
-        let in_mesh = report["mesh_penetrations_per_frame"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|f| f["inside"][0].as_u64().unwrap())
-            .collect();
-        (inside, report["torn_springs"].as_u64().unwrap(), in_mesh)
-    };
-    let (swept, torn_swept, swept_mesh) = inside_per_frame(true);
-    let (plain, torn_plain, plain_mesh) = inside_per_frame(false);
-    eprintln!("inside the ball's mesh per frame (report): swept {swept_mesh:?}, end point only {plain_mesh:?}");
-    // The mesh is inscribed in the sphere: it never counts more than the sphere holds, sees the
-    // swallowed cloth, and nothing with the swept test.
-    for (mesh, sphere) in plain_mesh.iter().zip(&plain) {
+        assert!(torn > 0, "swept {swept}: the caught cloth should tear");
+    }
+    // At 14.4 m/s (2.4 cm a substep, twice the reach) the end point alone swallows cloth: the
+    // report's count against the ball's own mesh sees it and never counts more than the sphere
+    // (the mesh is inscribed in it). The swept test lets a few particles in for a frame or two.
+    // Measured: the end point 38 particles in the ball at frame 3, the swept test 5 at frame 4.
+    let (plain, plain_mesh, _) = throw_a_ball(dir.path(), 0.24, false);
+    let (swept, swept_mesh, _) = throw_a_ball(dir.path(), 0.24, true);
+    eprintln!("14.4 m/s: end point {plain:?} (mesh {plain_mesh:?}), swept {swept:?} (mesh {swept_mesh:?})");
+    for (mesh, sphere) in plain_mesh
+        .iter()
+        .zip(&plain)
+        .chain(swept_mesh.iter().zip(&swept))
+    {
         assert!(
             *mesh as usize <= *sphere,
             "{plain_mesh:?} against {plain:?}"
         );
     }
     assert!(plain_mesh.iter().any(|&n| n > 0), "{plain_mesh:?}");
-    assert!(swept_mesh.iter().all(|&n| n == 0), "{swept_mesh:?}");
-    eprintln!(
-        "particles inside the ball per frame: swept {swept:?} ({torn_swept} springs torn), \
-         end point only {plain:?} ({torn_plain} torn)"
-    );
-    // Measured: none of the 961 particles in the ball in any frame with the swept test, 41
-    // without. (With the facets' own normals, before smooth shell normals, 9 slipped past
-    // where the ball's silhouette grazes the cloth: the tangent planes of neighbouring shell
-    // particles disagreed by a facet's angle.)
-    let (most_swept, most_plain) = (*swept.iter().max().unwrap(), *plain.iter().max().unwrap());
+    let (most_plain, most_swept) = (*plain.iter().max().unwrap(), *swept.iter().max().unwrap());
     assert!(most_plain > 20, "end point only: {plain:?}");
-    assert_eq!(most_swept, 0, "swept {swept:?}, end point only {plain:?}");
-    assert!(torn_swept > torn_plain, "the caught cloth should tear");
+    assert!(
+        most_swept * 4 <= most_plain,
+        "swept {swept:?}, end point only {plain:?}"
+    );
 }
 
 #[test]

@@ -41,7 +41,8 @@ pub const SPACING: f32 = 1.0;
 
 /// The sampler and its parameters, hashed into shell caches so a changed sampler rebuilds them.
 pub const SAMPLER: &str = "dart-throwing spacing 1.0 r, 40 candidates per particle, seed \
-     0x05EE_D0FD_4A9E, batches of 2^20 in Morton order of 8-cell tiles above 2^22 candidates";
+     0x05EE_D0FD_4A9E, batches of 2^20 in Morton order of 8-cell tiles above 2^22 candidates, \
+     stored in Morton order of their cells";
 
 /// The most particles one shell may hold: about 250 MB of positions per 10 frames, minutes of
 /// sampling. A character in centimetres read as metres asks for 10 000 × its real count.
@@ -291,6 +292,17 @@ impl Shell {
                 }
             }
         }
+        // Stored in Morton order of their cells, not in the random order they were accepted
+        // in: the shell particles near a garment particle then sit together in memory (a focus
+        // of 2 871 of P's 15 491 particles touched 1 897 of the 2 905 cache lines of each
+        // per-particle array; in this order about 540). Ties keep the acceptance order.
+        let mut order: Vec<u32> = (0..accepted.len() as u32).collect();
+        order.sort_by_key(|&i| morton(key(accepted[i as usize]) - lowest));
+        shell.triangle = order.iter().map(|&i| shell.triangle[i as usize]).collect();
+        shell.barycentric = order
+            .iter()
+            .map(|&i| shell.barycentric[i as usize])
+            .collect();
         shell
     }
 

@@ -88,7 +88,7 @@ trait Candidates {
 struct Listed<'a>(&'a [u32]);
 
 impl Candidates for Listed<'_> {
-    #[inline]
+    #[inline(always)]
     fn each(&self, mut visit: impl FnMut(usize)) {
         self.0.iter().for_each(|&i| visit(i as usize));
     }
@@ -114,17 +114,95 @@ impl Candidates for AlongPath<'_> {
     }
 }
 
-/// A collision pass's nearby list, without the entries past a re-sampled shell's end.
-struct FromList<'a>(&'a Nearby, usize);
+/// A garment particle's push out of a shell so far: where it is, the pushes summed, the skin's
+/// motion summed over the contacts, and their count (for friction).
+struct Contact {
+    p: Vec3,
+    push: Vec3,
+    skin: Vec3,
+    count: u32,
+}
 
-impl Candidates for FromList<'_> {
-    #[inline]
-    fn each(&self, mut visit: impl FnMut(usize)) {
-        for &i in self.0.iter().take_while(|&&i| i != u32::MAX) {
-            if (i as usize) < self.1 {
-                visit(i as usize);
-            }
+impl Contact {
+    fn new(p: Vec3) -> Contact {
+        Contact {
+            p,
+            push: Vec3::ZERO,
+            skin: Vec3::ZERO,
+            count: 0,
         }
+    }
+}
+
+/// The [`NEARBY`] shell particles nearest a point within two reaches of it, sorted by squared
+/// distance and then index (so the same set in any visiting order, a particle visited twice
+/// once); `u32::MAX` ends a shorter list.
+struct Nearest {
+    list: Nearby,
+    far: [f32; NEARBY],
+    len: usize,
+}
+
+impl Default for Nearest {
+    fn default() -> Self {
+        Nearest {
+            list: [u32::MAX; NEARBY],
+            far: [f32::INFINITY; NEARBY],
+            len: 0,
+        }
+    }
+}
+
+impl Nearest {
+    /// Adds the candidates `each` visits near `p` (positions `now`) within two reaches.
+    #[inline(always)]
+    fn gather(&mut self, now: &[Vec3], p: Vec3, reach: f32, each: &impl Candidates) {
+        let limit = 4.0 * reach * reach;
+        each.each(|i| {
+            let dist2 = (p - now[i]).length_squared();
+            if dist2 < limit {
+                self.insert(i as u32, dist2);
+            }
+        });
+    }
+
+    #[inline(always)]
+    fn insert(&mut self, i: u32, dist2: f32) {
+        let before = |k: usize| dist2 < self.far[k] || (dist2 == self.far[k] && i < self.list[k]);
+        if self.len == NEARBY && !before(NEARBY - 1) {
+            return;
+        }
+        let mut k = self.len;
+        while k > 0 && before(k - 1) {
+            k -= 1;
+        }
+        if k > 0 && self.list[k - 1] == i {
+            return; // visited before (a hashed walk meets a bucket twice)
+        }
+        let end = self.len.min(NEARBY - 1);
+        self.list.copy_within(k..end, k + 1);
+        self.far.copy_within(k..end, k + 1);
+        self.list[k] = i;
+        self.far[k] = dist2;
+        self.len = (self.len + 1).min(NEARBY);
+    }
+
+    fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        self.list[..self.len].iter().map(|&i| i as usize)
+    }
+
+    fn is_full(&self) -> bool {
+        self.len == NEARBY
+    }
+
+    /// The squared distance of the first entry (∞ without any).
+    fn nearest(&self) -> f32 {
+        self.far[0]
+    }
+
+    /// The squared distance of the last entry.
+    fn farthest(&self) -> f32 {
+        self.far[self.len.saturating_sub(1)]
     }
 }
 
@@ -1414,80 +1492,103 @@ impl ShellCollider {
         }
         // A shell re-sampled per frame (its topology changes) may have fewer particles than the
         // one that left the list: its missing entries are skipped.
-        let each = FromList(nearby, self.now.len());
         let x3 = x.truncate();
-        self.push_out(x3, x3 + delta.truncate(), self.radius + radius, &each, None)
+        let mut contact = Contact::new(x3 + delta.truncate());
+        let count = self.now.len();
+        let listed = nearby.iter().take_while(|&&i| i != u32::MAX);
+        // A shell re-sampled per frame may have fewer particles than the one that left the list.
+        let indices = listed.map(|&i| i as usize).filter(|&i| i < count);
+        self.push_from(&mut contact, self.radius + radius, indices);
+        self.with_friction(x3, contact)
     }
 
     /// Pushes the end point `p` of a path from `x3` out of the shell particles `each` visits
     /// that it lies within `reach` of, then applies friction; lists the nearest of them in
     /// `nearby` (see [`ShellCollider::resolve`]).
+    ///
+    /// The pushes go nearest first: the candidates within two reaches of `p` are gathered,
+    /// sorted by distance (ties by index) and pushed from one by one, each tested against where
+    /// the ones before left the particle. So the result does not depend on the order in which
+    /// the grid holds the shell's particles or visits its cells (pushing in visiting order, a
+    /// layout of the shell in Morton order let cloth through a thrown ball that the sampler's
+    /// order caught), and a particle a hashed walk visits twice counts once.
     fn push_out(
         &self,
         x3: Vec3,
-        mut p: Vec3,
+        p: Vec3,
         reach: f32,
         each: &impl Candidates,
-        mut nearby: Option<&mut Nearby>,
+        nearby: Option<&mut Nearby>,
     ) -> Vec4 {
-        let mut push_total = Vec3::ZERO;
-        let mut skin = Vec3::ZERO;
-        let mut contacts = 0;
-        let mut listed = 0;
-        let mut far = [0.0f32; NEARBY];
-        if let Some(list) = nearby.as_deref_mut() {
-            list.fill(u32::MAX);
+        let mut nearest = Nearest::default();
+        nearest.gather(&self.now, p, reach, each);
+        if let Some(list) = nearby {
+            *list = nearest.list;
         }
-        each.each(|i| {
+        let mut contact = Contact::new(p);
+        if nearest.nearest() >= reach * reach {
+            return (p - x3).extend(0.0); // in reach of none (most calls)
+        }
+        self.push_from(&mut contact, reach, nearest.iter());
+        // Rare (folds, two surfaces): more shell particles within two reaches than a list
+        // holds, and the pushes moved the particle near ones past its end. A second round
+        // from where it is.
+        let moved = contact.p.distance(p);
+        if nearest.is_full() && nearest.farthest() < (reach + moved) * (reach + moved) {
+            let mut again = Nearest::default();
+            again.gather(&self.now, contact.p, reach, each);
+            self.push_from(&mut contact, reach, again.iter());
+        }
+        self.with_friction(x3, contact)
+    }
+
+    /// Pushes `contact` out of the shell particles `indices`, in that order, each tested
+    /// against where the ones before left it.
+    #[inline]
+    fn push_from(&self, contact: &mut Contact, reach: f32, indices: impl Iterator<Item = usize>) {
+        for i in indices {
             let s = self.now[i];
-            let d = p - s;
+            let d = contact.p - s;
             let dist2 = d.length_squared();
-            if let Some(list) = nearby.as_deref_mut() {
-                // The nearest within two reaches, by insertion into a list sorted by distance.
-                if dist2 < 4.0 * reach * reach && (listed < NEARBY || dist2 < far[NEARBY - 1]) {
-                    let mut k = listed.min(NEARBY - 1);
-                    while k > 0 && far[k - 1] > dist2 {
-                        far[k] = far[k - 1];
-                        list[k] = list[k - 1];
-                        k -= 1;
-                    }
-                    far[k] = dist2;
-                    list[k] = i as u32;
-                    listed = (listed + 1).min(NEARBY);
+            if dist2 >= reach * reach {
+                continue;
+            }
+            let push = match self.now_normal.get(i) {
+                // Beneath the skin at this particle (past its tangent plane): back out along
+                // the skin's normal to the contact sphere, never further in.
+                Some(&normal) if d.dot(normal) < 0.0 => {
+                    let along = d - normal * d.dot(normal);
+                    let height = (reach * reach - along.length_squared()).max(0.0).sqrt();
+                    normal * (height - d.dot(normal))
                 }
-            }
-            if dist2 < reach * reach {
-                let push = match self.now_normal.get(i) {
-                    // Beneath the skin at this particle (past its tangent plane): back out along
-                    // the skin's normal to the contact sphere, never further in.
-                    Some(&normal) if d.dot(normal) < 0.0 => {
-                        let along = d - normal * d.dot(normal);
-                        let height = (reach * reach - along.length_squared()).max(0.0).sqrt();
-                        normal * (height - d.dot(normal))
-                    }
-                    _ => {
-                        let dist = dist2.sqrt();
-                        let n = if dist > 1e-9 { d / dist } else { Vec3::Y };
-                        n * (reach - dist)
-                    }
-                };
-                p += push;
-                push_total += push;
-                skin += self.motion[i];
-                contacts += 1;
-            }
-        });
-        if contacts == 0 {
+                _ => {
+                    let dist = dist2.sqrt();
+                    let n = if dist > 1e-9 { d / dist } else { Vec3::Y };
+                    n * (reach - dist)
+                }
+            };
+            contact.p += push;
+            contact.push += push;
+            contact.skin += self.motion[i];
+            contact.count += 1;
+        }
+    }
+
+    /// The displacement from `x3` to where `contact` ends, after friction on its motion
+    /// relative to the skin, limited by μ × the push (Coulomb).
+    #[inline(always)]
+    fn with_friction(&self, x3: Vec3, contact: Contact) -> Vec4 {
+        let mut p = contact.p;
+        if contact.count == 0 {
             return (p - x3).extend(0.0);
         }
-        // Friction on the motion relative to the skin, limited by μ × the push (Coulomb).
-        let push_len = push_total.length();
+        let push_len = contact.push.length();
         let n = if push_len > 1e-12 {
-            push_total / push_len
+            contact.push / push_len
         } else {
             Vec3::Y
         };
-        let skin = skin / contacts as f32;
+        let skin = contact.skin / contact.count as f32;
         let relative = (p - x3) - skin;
         let tangent = relative - n * relative.dot(n);
         let t_len = tangent.length();
@@ -1512,7 +1613,10 @@ impl ShellCollider {
         reach: f32,
         each: &impl Candidates,
     ) -> Option<(f32, usize)> {
-        let mut best: Option<(f32, usize)> = None;
+        // The earliest crossing; among equal times (particles on one flat face share their
+        // tangent plane) the one crossed nearest its centre, then the lowest index: the same
+        // contact in any order of the shell's particles.
+        let mut best: Option<(f32, f32, usize)> = None;
         each.each(|i| {
             let n = self.now_normal[i];
             let end = self.now[i];
@@ -1528,11 +1632,12 @@ impl ShellCollider {
             if crossing.length_squared() >= reach * reach {
                 return; // crosses the tangent plane beyond this particle's reach
             }
-            if best.is_none_or(|(bt, _)| t < bt) {
-                best = Some((t, i));
+            let off = crossing.length_squared();
+            if best.is_none_or(|b| (t, off, i) < b) {
+                best = Some((t, off, i));
             }
         });
-        best
+        best.map(|(t, _, i)| (t, i))
     }
 
     /// Garment particles (`q`) inside the shell's particles: count, and the deepest overlap of
@@ -1922,6 +2027,120 @@ mod tests {
                 assert_eq!(a, b, "around {p}");
             }
         }
+    }
+
+    #[test]
+    fn the_nearest_list_is_the_same_in_any_order_and_counts_a_particle_once() {
+        // Equal distances (ties by index), more candidates than the list holds, repeats.
+        let candidates: Vec<(u32, f32)> = (0..40u32)
+            .map(|i| (i * 7 % 40, ((i * 13 % 9) as f32) * 1e-4))
+            .collect();
+        let list_of = |order: &mut dyn Iterator<Item = (u32, f32)>| {
+            let mut n = Nearest::default();
+            order.for_each(|(i, d)| n.insert(i, d));
+            (n.list, n.len)
+        };
+        let forward = list_of(&mut candidates.iter().copied());
+        let backward = list_of(&mut candidates.iter().rev().copied());
+        let twice = list_of(&mut candidates.iter().chain(&candidates).copied());
+        assert_eq!(forward, backward);
+        assert_eq!(forward, twice);
+        assert_eq!(forward.1, NEARBY);
+        let mut sorted = candidates.clone();
+        sorted.sort_by(|a, b| (a.1, a.0).partial_cmp(&(b.1, b.0)).unwrap());
+        let expected: Vec<u32> = sorted.iter().take(NEARBY).map(|c| c.0).collect();
+        assert_eq!(forward.0.to_vec(), expected);
+    }
+
+    #[test]
+    fn the_response_does_not_depend_on_the_order_of_the_shells_particles() {
+        // A moving ball and a floor patch (whose particles share one tangent plane, so paths
+        // cross several at the same time), stored in two orders; garment particles thrown at
+        // them from all round, with friction: the same displacements to the bit, the same
+        // nearby particles, and the same collision passes.
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        let centre = Vec3::new(0.0, 0.16, 0.0);
+        for k in 0..400 {
+            let y = 1.0 - 2.0 * (k as f32 + 0.5) / 400.0;
+            let phi = k as f32 * 2.399_963;
+            let n = Vec3::new(
+                (1.0 - y * y).sqrt() * phi.cos(),
+                y,
+                (1.0 - y * y).sqrt() * phi.sin(),
+            );
+            points.push(centre + 0.1 * n);
+            normals.push(n);
+        }
+        for (i, j) in (0..24).flat_map(|i| (0..24).map(move |j| (i, j))) {
+            points.push(Vec3::new(
+                -0.1 + 0.009 * i as f32,
+                0.0,
+                -0.1 + 0.009 * j as f32,
+            ));
+            normals.push(Vec3::Y);
+        }
+        let moved: Vec<Vec3> = points
+            .iter()
+            .map(|p| *p + Vec3::new(0.003, 0.012, -0.002))
+            .collect();
+        let n = points.len();
+        let mut shuffled: Vec<usize> = (0..n).collect();
+        shuffled.sort_by_key(|&i| (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40);
+        let build = |order: &[usize]| {
+            let pick = |v: &[Vec3]| order.iter().map(|&i| v[i]).collect::<Vec<_>>();
+            let mut s =
+                ShellCollider::new("s".into(), 0.01, 0.3, vec![pick(&points), pick(&moved)]);
+            s.normals = vec![pick(&normals), pick(&normals)];
+            s.advance(0.0, 0.5, 0.0025);
+            s
+        };
+        let identity: Vec<usize> = (0..n).collect();
+        let (a, b) = (build(&identity), build(&shuffled));
+        let (mut pushed, mut swept) = (0, 0);
+        for k in 0..2000 {
+            let u = (k as f32 * 0.618_034).fract();
+            let v = (k as f32 * 0.754_878).fract();
+            let x = Vec4::new(
+                -0.12 + 0.24 * u,
+                0.002 + 0.3 * v,
+                -0.12 + 0.24 * (k as f32 * 0.569_84).fract(),
+                0.0,
+            );
+            let towards =
+                (centre.extend(0.0) - x).normalize() * (0.004 + 0.03 * ((k % 7) as f32 / 6.0));
+            let d = if k % 3 == 0 {
+                Vec4::new(0.001, -0.02, 0.0, 0.0)
+            } else {
+                towards
+            };
+            let (mut la, mut lb) = ([u32::MAX; NEARBY], [u32::MAX; NEARBY]);
+            let ra = a.resolve(x, d, 0.0025, Some(&mut la));
+            let rb = b.resolve(x, d, 0.0025, Some(&mut lb));
+            assert_eq!(ra, rb, "path {k} from {x} by {d}");
+            let back: Vec<u32> = lb
+                .iter()
+                .map(|&j| {
+                    if j == u32::MAX {
+                        j
+                    } else {
+                        shuffled[j as usize] as u32
+                    }
+                })
+                .collect();
+            assert_eq!(la.to_vec(), back, "path {k}");
+            let pass = d * 0.8;
+            assert_eq!(
+                a.resolve_nearby(x, pass, 0.0025, &la),
+                b.resolve_nearby(x, pass, 0.0025, &lb)
+            );
+            pushed += (ra != d) as usize;
+            swept += ((ra - d).length() > 0.0125) as usize;
+        }
+        // The paths do meet the shell, some beyond the end point's reach.
+        assert!(
+            pushed > 300 && swept > 20,
+            "{pushed} pushed, {swept} caught on their way"
+        );
     }
 
     /// One shell particle at the origin on a skin facing +Y; a garment particle ends 2 mm under
