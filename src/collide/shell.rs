@@ -4,7 +4,10 @@
 //! a counting sort) finds the shell particles near a garment particle; an overlapping pair is
 //! pushed apart along the line between the centres (along the skin's normal once it is past
 //! the shell particle's tangent plane), the garment particle alone moving, and friction acts on
-//! its motion *relative to the skin* (so cloth resting on a moving arm moves with it).
+//! its motion *relative to the skin* (so cloth resting on a moving arm moves with it). Where
+//! a garment particle overlaps several shell particles, they push nearest first, each from where
+//! the ones before left it: the result does not depend on the order the shell's particles are
+//! stored in (they are stored in Morton order of their cells, for the caches) or visited in.
 //!
 //! With the swept test on, each garment particle's path over the substep is also traced against
 //! the shell particles *relative to their own motion*: a path that crosses the skin's tangent
