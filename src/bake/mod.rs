@@ -329,6 +329,9 @@ fn run(
     let mut stage_times = sim.stage_times.clone();
     stage_times.add(&around);
     report.stages_ms = StageTiming::of(&stage_times, report.frames_baked);
+    if report.backend.kind == "cpu" {
+        report.backend.frames_on_one_thread = sim.sharing.solo_frames;
+    }
     Ok((report, sim.export_positions()))
 }
 

@@ -23,6 +23,7 @@ pub(super) fn empty_report(
         backend: Backend {
             kind: "cpu",
             threads,
+            frames_on_one_thread: 0,
             adapter: None,
         },
         solver: scene.solver.clone(),

@@ -153,6 +153,9 @@ pub struct Backend {
     pub kind: &'static str,
     /// Worker threads of the CPU (which also measures and exports on the GPU backend).
     pub threads: usize,
+    /// Frames the CPU backend ran on one of them because the machine was busy (the team's
+    /// threads kept waiting for each other: `sim::team::Sharing`); the same frames either way.
+    pub frames_on_one_thread: u32,
     /// The GPU adapter, on the GPU backend.
     pub adapter: Option<Adapter>,
 }

@@ -107,6 +107,10 @@ pub struct Simulation {
     pub torn_springs: usize,
     /// Wall time of each stage so far ([`schedule::TIMED`]; the bake adds its own).
     pub stage_times: schedule::StageTimes,
+    /// The current frame's team regions: their barriers and the waits that slept at them.
+    team_stats: team::RegionStats,
+    /// Who runs the team's regions, frame by frame ([`team::Sharing`]).
+    pub sharing: team::Sharing,
     /// Wind and attractors, when the scene has force fields.
     forces: Option<forces::Forces>,
     /// Their acceleration of each particle in the current substep (empty without).
@@ -225,6 +229,8 @@ impl Simulation {
             gravity,
             residuals: scene.output.residuals.then(Vec::new),
             stage_times: schedule::StageTimes::default(),
+            team_stats: team::RegionStats::default(),
+            sharing: team::Sharing::default(),
             model,
             state,
             solver,
@@ -282,6 +288,17 @@ impl Simulation {
 
     /// Advances one frame (all substeps).
     pub fn step_frame(&mut self) {
+        self.team_stats = team::RegionStats {
+            threads: self.sharing.threads(),
+            ..team::RegionStats::default()
+        };
+        let start = std::time::Instant::now();
+        self.step_frame_substeps();
+        self.sharing
+            .after_frame(self.team_stats, start.elapsed().as_secs_f64());
+    }
+
+    fn step_frame_substeps(&mut self) {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
@@ -739,7 +756,7 @@ impl Simulation {
         let particles = self.particle_collisions.as_ref();
         let grid = &self.grid;
         let times = Mutex::new(schedule::StageTimes::default());
-        team::run(|m| {
+        let region = team::run(self.sharing.threads(), |m| {
             // The leader times the stages (each ends with a sync, so its time is the team's);
             // the others keep no clock.
             let mut clock = std::time::Instant::now();
@@ -794,6 +811,8 @@ impl Simulation {
         });
         self.stage_times
             .add(&times.into_inner().expect("not poisoned"));
+        self.team_stats.barriers += region.barriers;
+        self.team_stats.slept += region.slept;
         if predict_after {
             self.predicted_at = Some(self.elapsed_substeps);
         }

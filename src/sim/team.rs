@@ -5,7 +5,8 @@
 //! Why not a parallel iterator per stage: a substep has five to six stages of a few microseconds
 //! each, and waking sleeping pool threads for every one cost more than the work (measured: two
 //! threads were no faster than one on scene E). The static shares also make every run touch the
-//! same indices from the same thread, so results never depend on scheduling. Stages that compute
+//! same indices from the same thread, so results never depend on scheduling (nor on the team's
+//! size: on a busy machine [`Sharing`] runs frames on one thread). Stages that compute
 //! each particle alone at a cost that varies over the cloth (collisions) share their particles by
 //! cost instead ([`Member::balanced`]): which thread computes a particle changes nothing there.
 
@@ -29,6 +30,8 @@ pub struct SpinBarrier {
     broken: AtomicBool,
     /// Threads asleep in `wait`.
     sleepers: AtomicUsize,
+    /// Waits that ended asleep (spun out), over the barrier's life.
+    slept: AtomicUsize,
     lock: Mutex<()>,
     wake: Condvar,
 }
@@ -39,7 +42,8 @@ const BROKEN: &str = "another thread of the team panicked";
 /// Spins before sleeping (about 10–30 µs). Measured on 2 cores: 256 slowed scene H alone by 60 %
 /// (threads slept between stages and waited to be woken); 4 096 left two bakes at once 2.4–3.0 ×
 /// slower than one alone; 1 024 keeps P and H alone within the noise of the old spinning barrier
-/// and two bakes at once at 1.6–1.9 ×.
+/// and two bakes at once at 1.6–1.9 × (on a Zen 5 VM later: 3.0–3.5 ×, 2.5 × with 64 spins but
+/// P alone 5 % slower, 1.9 × with 16 but P alone 40 % slower: hence [`Sharing`]).
 const SPINS: u32 = 1 << 10;
 
 impl SpinBarrier {
@@ -50,6 +54,7 @@ impl SpinBarrier {
             generation: AtomicUsize::new(0),
             broken: AtomicBool::new(false),
             sleepers: AtomicUsize::new(0),
+            slept: AtomicUsize::new(0),
             lock: Mutex::new(()),
             wake: Condvar::new(),
         }
@@ -93,6 +98,7 @@ impl SpinBarrier {
             }
             std::hint::spin_loop();
         }
+        self.slept.fetch_add(1, Ordering::Relaxed);
         let mut guard = self.lock.lock().unwrap_or_else(|e| e.into_inner());
         self.sleepers.fetch_add(1, Ordering::SeqCst);
         while self.generation.load(Ordering::SeqCst) == generation {
@@ -231,9 +237,96 @@ impl Member<'_> {
     }
 }
 
-/// Runs `body` on every thread of the current rayon pool at once.
-pub fn run(body: impl Fn(&Member) + Sync) {
-    let threads = rayon::current_num_threads().max(1);
+/// How a team region went: its barriers, and the waits at them that spun out and slept.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RegionStats {
+    /// Barriers the team passed.
+    pub barriers: u64,
+    /// Waits (of the threads not last to arrive) that ended asleep.
+    pub slept: u64,
+    /// Threads in the team.
+    pub threads: usize,
+}
+
+/// Who runs the team's regions, frame by frame: the whole pool, or the calling thread alone
+/// while the machine is busy. A team of two on a 2-core machine shared with another bake waits
+/// at nearly every barrier for a thread the OS has descheduled: measured on P, its waits slept
+/// at 0–0.2 % of the barriers alone and at 45–100 % with a second bake running, and two bakes
+/// at once each took 3.0–3.5 × one alone, where one thread each would take 1.9 ×. So a frame
+/// whose waits slept at more than a quarter of its barriers sends the next frames to one thread;
+/// then one frame tries the whole team again, and a busy machine doubles the solo stretch (up to
+/// [`MOST_SOLO`] frames), unless that frame took less than three quarters of the last solo
+/// frame's time: a team slowed by the machine but still faster keeps going. Frames are the same
+/// bits on any team size (`tests/determinism.rs`).
+#[derive(Clone, Debug)]
+pub struct Sharing {
+    /// Frames still to run on one thread.
+    solo_left: u32,
+    /// The next solo stretch, frames.
+    stretch: u32,
+    /// The last solo frame's time [s].
+    solo_seconds: Option<f64>,
+    /// Frames run on one thread so far.
+    pub solo_frames: u32,
+}
+
+/// The first solo stretch, frames.
+const FIRST_SOLO: u32 = 8;
+/// The longest solo stretch, frames.
+const MOST_SOLO: u32 = 64;
+
+impl Default for Sharing {
+    fn default() -> Self {
+        Sharing {
+            solo_left: 0,
+            stretch: FIRST_SOLO,
+            solo_seconds: None,
+            solo_frames: 0,
+        }
+    }
+}
+
+impl Sharing {
+    /// Threads for the coming frame's regions: the pool's, or 1.
+    pub fn threads(&self) -> usize {
+        if self.solo_left > 0 {
+            1
+        } else {
+            rayon::current_num_threads().max(1)
+        }
+    }
+
+    /// After a frame that took `seconds`, whose regions went as `stats` (summed) on
+    /// [`Sharing::threads`] threads.
+    pub fn after_frame(&mut self, stats: RegionStats, seconds: f64) {
+        if self.solo_left > 0 {
+            self.solo_left -= 1;
+            self.solo_frames += 1;
+            self.solo_seconds = Some(seconds);
+            return;
+        }
+        let waits = stats.barriers * (stats.threads.max(1) as u64 - 1);
+        if waits == 0 {
+            return;
+        }
+        let team_pays = self.solo_seconds.is_some_and(|solo| seconds < 0.75 * solo);
+        if stats.slept * 4 > waits && !team_pays {
+            self.solo_left = self.stretch;
+            self.stretch = (self.stretch * 2).min(MOST_SOLO);
+        } else {
+            self.stretch = FIRST_SOLO;
+        }
+    }
+}
+
+/// Runs `body` on `threads` threads at once: the current rayon pool's (all of them), or the
+/// calling thread alone (1).
+pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
+    let threads = if threads <= 1 {
+        1
+    } else {
+        rayon::current_num_threads().max(1)
+    };
     let barrier = SpinBarrier::new(threads);
     let left: Vec<Left> = (0..threads).map(|_| Left::default()).collect();
     if threads == 1 {
@@ -243,7 +336,10 @@ pub fn run(body: impl Fn(&Member) + Sync) {
             barrier: &barrier,
             left: &left,
         });
-        return;
+        return RegionStats {
+            threads,
+            ..RegionStats::default()
+        };
     }
     rayon::broadcast(|ctx| {
         let member = Member {
@@ -258,6 +354,11 @@ pub fn run(body: impl Fn(&Member) + Sync) {
             std::panic::resume_unwind(panic);
         }
     });
+    RegionStats {
+        barriers: barrier.generation.load(Ordering::Acquire) as u64,
+        slept: barrier.slept.load(Ordering::Relaxed) as u64,
+        threads,
+    }
 }
 
 /// A slice shared by the threads of a team, each writing only its own indices in a stage.
@@ -338,6 +439,54 @@ impl<T: Copy> Shared<T> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn a_busy_team_goes_solo_for_growing_stretches_and_back_when_it_waits_little() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let team = |slept| RegionStats {
+                barriers: 800,
+                slept,
+                threads: 2,
+            };
+            let solo = RegionStats {
+                threads: 1,
+                ..RegionStats::default()
+            };
+            let mut s = Sharing::default();
+            // Waits that sleep at a quarter of the barriers or fewer: the team stays.
+            s.after_frame(team(200), 0.01);
+            assert_eq!(s.threads(), 2);
+            // More: FIRST_SOLO frames on one thread, then one frame on the team again.
+            s.after_frame(team(201), 0.01);
+            for _ in 0..FIRST_SOLO {
+                assert_eq!(s.threads(), 1);
+                s.after_frame(solo, 0.02);
+            }
+            assert_eq!((s.threads(), s.solo_frames), (2, FIRST_SOLO));
+            // Still busy and no faster than solo: twice as long alone.
+            s.after_frame(team(700), 0.02);
+            for _ in 0..2 * FIRST_SOLO {
+                assert_eq!(s.threads(), 1);
+                s.after_frame(solo, 0.02);
+            }
+            // Busy but faster than three quarters of a solo frame: the team keeps going.
+            s.after_frame(team(700), 0.014);
+            assert_eq!(s.threads(), 2);
+            // Quiet again: the stretch starts over.
+            s.after_frame(team(0), 0.01);
+            s.after_frame(team(700), 0.03);
+            let alone = (0..MOST_SOLO).take_while(|_| {
+                let t = s.threads();
+                s.after_frame(solo, 0.02);
+                t == 1
+            });
+            assert_eq!(alone.count() as u32, FIRST_SOLO);
+        });
+    }
+
     /// Every particle of a balanced stage is visited exactly once, whatever the team's size and
     /// however uneven the work (the first particles cost far more, so the others' threads take
     /// from their shares), stage after stage.
@@ -352,7 +501,7 @@ mod tests {
             let visits: Vec<AtomicUsize> = (0..order.len()).map(|_| AtomicUsize::new(0)).collect();
             let stolen = AtomicUsize::new(0);
             pool.install(|| {
-                run(|m| {
+                run(threads, |m: &Member| {
                     for _ in 0..4 {
                         m.balanced(&order, |i| {
                             visits[i].fetch_add(1, Ordering::Relaxed);
