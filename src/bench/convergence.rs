@@ -167,6 +167,8 @@ pub fn measure(
     // a frame does not depend on it), and returns the fastest one's seconds: the least disturbed
     // by the rest of the machine.
     let mut frame = |sim: &mut Simulation, warm: bool, repeats: u32| -> Result<f64> {
+        // Timed on the threads asked for, busy machine or not.
+        sim.sharing = crate::sim::team::Sharing::whole_team();
         let mut b = match gpu {
             Some(open) => Backend::gpu(open()?, sim)?,
             None => Backend::Cpu,

@@ -13,6 +13,7 @@ use crate::bake::thread_pool;
 use crate::collide;
 use crate::error::Result;
 use crate::scene::{Scene, SolverKind};
+use crate::sim::team::Sharing;
 use crate::sim::Simulation;
 use std::time::Instant;
 
@@ -51,8 +52,10 @@ pub fn time_iterations(
     pool.install(|| {
         // One untimed frame warms caches and the pool; the timed one restarts from rest.
         let mut warm = Simulation::new(&scene);
+        warm.sharing = Sharing::whole_team();
         warm.step_frame();
         let mut sim = Simulation::new(&scene);
+        sim.sharing = Sharing::whole_team();
         let start = Instant::now();
         sim.substep();
         let seconds = start.elapsed().as_secs_f64();
@@ -97,6 +100,8 @@ pub fn time_frames(
     let pool = thread_pool(Some(threads))?;
     pool.install(|| {
         let mut sim = Simulation::new(&scene);
+        // Timed on the threads asked for, busy machine or not.
+        sim.sharing = Sharing::whole_team();
         let mut ms = Vec::with_capacity(frames as usize);
         let mut stable = true;
         for _ in 0..frames {
@@ -172,6 +177,7 @@ pub fn time_size(
     // Runs `count` frames of `scene` after one warm-up frame; returns seconds per frame.
     let mut run = |scene: &Scene, count: u32| -> Result<f64> {
         let mut sim = Simulation::new(scene);
+        sim.sharing = Sharing::whole_team();
         let mut b = match gpu {
             Some(open) => Backend::gpu(open()?, &sim)?,
             None => Backend::Cpu,

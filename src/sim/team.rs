@@ -266,6 +266,8 @@ pub struct Sharing {
     stretch: u32,
     /// The last solo frame's time [s].
     solo_seconds: Option<f64>,
+    /// False: always the whole pool ([`Sharing::whole_team`]).
+    adaptive: bool,
     /// Frames run on one thread so far.
     pub solo_frames: u32,
 }
@@ -281,15 +283,24 @@ impl Default for Sharing {
             solo_left: 0,
             stretch: FIRST_SOLO,
             solo_seconds: None,
+            adaptive: true,
             solo_frames: 0,
         }
     }
 }
 
 impl Sharing {
+    /// Always the whole pool, busy or not: for benchmarks that time a given number of threads.
+    pub fn whole_team() -> Sharing {
+        Sharing {
+            adaptive: false,
+            ..Sharing::default()
+        }
+    }
+
     /// Threads for the coming frame's regions: the pool's, or 1.
     pub fn threads(&self) -> usize {
-        if self.solo_left > 0 {
+        if self.adaptive && self.solo_left > 0 {
             1
         } else {
             rayon::current_num_threads().max(1)
@@ -299,6 +310,9 @@ impl Sharing {
     /// After a frame that took `seconds`, whose regions went as `stats` (summed) on
     /// [`Sharing::threads`] threads.
     pub fn after_frame(&mut self, stats: RegionStats, seconds: f64) {
+        if !self.adaptive {
+            return;
+        }
         if self.solo_left > 0 {
             self.solo_left -= 1;
             self.solo_frames += 1;
@@ -484,6 +498,10 @@ mod tests {
                 t == 1
             });
             assert_eq!(alone.count() as u32, FIRST_SOLO);
+            // A benchmark's team stays whole.
+            let mut whole = Sharing::whole_team();
+            whole.after_frame(team(800), 0.05);
+            assert_eq!((whole.threads(), whole.solo_frames), (2, 0));
         });
     }
 
