@@ -51,6 +51,8 @@ fn bake_writes_obj_frames_and_a_report() {
     assert_eq!(report["garments"][0]["pinned"], 2);
     assert_eq!(report["garments"][0]["colours"], 2);
     assert_eq!(report["backend"]["kind"], "cpu");
+    // Frames run on one thread on a busy machine: a count of the frames baked.
+    assert!(report["backend"]["frames_on_one_thread"].as_u64().unwrap() <= 3);
     assert_eq!(report["stable"], true);
     assert!(report["ms_per_frame"]["median"].as_f64().unwrap() > 0.0);
     // A second bake replaces the first.
@@ -85,6 +87,7 @@ fn gpu_backend_bakes_or_says_why_not() {
         )
         .unwrap();
         assert_eq!(report["backend"]["kind"], "gpu");
+        assert_eq!(report["backend"]["frames_on_one_thread"], 0);
         assert!(report["backend"]["adapter"]["name"]
             .as_str()
             .is_some_and(|n| !n.is_empty()));
