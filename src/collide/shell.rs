@@ -1504,13 +1504,12 @@ impl ShellCollider {
         if nearby[0] == u32::MAX {
             return delta;
         }
-        // A shell re-sampled per frame (its topology changes) may have fewer particles than the
-        // one that left the list: its missing entries are skipped.
         let x3 = x.truncate();
         let mut contact = Contact::new(x3 + delta.truncate());
         let count = self.now.len();
         let listed = nearby.iter().take_while(|&&i| i != u32::MAX);
-        // A shell re-sampled per frame may have fewer particles than the one that left the list.
+        // A shell re-sampled per frame (its topology changes) may have fewer particles than the
+        // one that left the list: its missing entries are skipped.
         let indices = listed.map(|&i| i as usize).filter(|&i| i < count);
         self.push_from(&mut contact, self.radius + radius, indices);
         self.with_friction(x3, contact)
