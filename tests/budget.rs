@@ -109,3 +109,45 @@ fn a_target_no_budget_meets_fails_with_the_frames_kept() {
     assert_eq!(out.status.code(), Some(2));
     assert!(common::stderr(&out).contains("--max-strain"));
 }
+
+/// A curtain whose top edge a keyframed rail carries 0.6 m along +X in the first second: where
+/// the cloth is depends on the clock.
+const RAIL: &str = r#"{ "frames": 10, "substeps": 5, "backend": "cpu",
+  "solver": { "iterations": 2 },
+  "garments": [{ "resolution": [12, 12], "size": [1, 1], "position": [0, 1, 0], "rotation": [90, 0, 0],
+                 "attachments": [{ "particles": "top_edge",
+                                   "keyframes": [{ "time": 0 }, { "time": 1, "translation": [0.6, 0, 0] }] }] }] }"#;
+
+/// A frame simulated again at the next budget is the frame a bake at that budget would have
+/// simulated from the same start: its clock is read in the substeps of the budget the start
+/// state was taken at. (It was not: a retry from 10 × 2 to 10 × 5 restored a clock counted in
+/// 5-substep units as 10-substep ones, and scene P's mannequin then ran 9 frames behind the
+/// cloth, which the bake measured against the mesh at the right time: cloth "inside" its arms.)
+#[test]
+fn a_frame_simulated_again_at_another_budget_starts_at_its_own_time() {
+    let scene = common::scene(RAIL);
+    let mut retried = drape::sim::Simulation::new(&scene);
+    let mut straight = drape::sim::Simulation::new(&scene);
+    for _ in 0..3 {
+        retried.step_frame();
+        straight.step_frame();
+    }
+    let start = retried.snapshot();
+    retried.set_budget(10, 2, 1);
+    retried.step_frame(); // the attempt that missed its target
+    retried.restore(&start).expect("its own snapshot");
+    retried.set_budget(10, 5, 1);
+    retried.step_frame();
+    straight.set_budget(10, 5, 1);
+    straight.step_frame();
+    assert_eq!(
+        retried.elapsed_substeps(),
+        4 * 10,
+        "four frames of 10 substeps"
+    );
+    assert_eq!(retried.elapsed_substeps(), straight.elapsed_substeps());
+    assert_eq!(
+        retried.state.positions, straight.state.positions,
+        "the same frame to the bit"
+    );
+}

@@ -86,6 +86,10 @@ pub struct Meta {
     /// Length of `frames.bin` holding exactly the frames baked.
     pub frames_bytes: u64,
     pub elapsed_substeps: u64,
+    /// The substeps per frame `elapsed_substeps` counts in (absent in checkpoints of drape
+    /// before it recorded them: 0, the scene's).
+    #[serde(default)]
+    pub substeps: u32,
     /// The driven speed's bits (exact).
     pub driven_speed_bits: u32,
     pub torn_springs: usize,
@@ -269,6 +273,7 @@ impl Writer {
             frame,
             frames_bytes,
             elapsed_substeps: snapshot.elapsed_substeps,
+            substeps: snapshot.substeps,
             driven_speed_bits: snapshot.driven_speed.to_bits(),
             torn_springs: snapshot.torn_springs,
             force_work_bits: snapshot.force_work.to_bits(),
@@ -406,6 +411,7 @@ fn decode(bytes: &[u8]) -> std::result::Result<Loaded, String> {
         positions,
         velocities,
         elapsed_substeps: meta.elapsed_substeps,
+        substeps: meta.substeps,
         driven_speed: f32::from_bits(meta.driven_speed_bits),
         torn_springs: meta.torn_springs,
         force_work: f64::from_bits(meta.force_work_bits),
@@ -555,6 +561,7 @@ mod tests {
             positions: vec![Vec4::new(1.0, 2.0, 3.0, 0.0); 3],
             velocities: vec![Vec4::new(-0.5, 0.25, f32::MIN_POSITIVE, 0.0); 3],
             elapsed_substeps: 123,
+            substeps: 41,
             driven_speed: 0.1,
             torn_springs: 2,
             force_work: 0.5,
@@ -577,6 +584,7 @@ mod tests {
             frame: 1001,
             frames_bytes: 20,
             elapsed_substeps: 123,
+            substeps: 41,
             driven_speed_bits: 0.1f32.to_bits(),
             torn_springs: 2,
             force_work_bits: 0.5f64.to_bits(),

@@ -18,8 +18,12 @@ pub struct Snapshot {
     /// Positions and velocities, storage order.
     pub positions: Vec<Vec4>,
     pub velocities: Vec<Vec4>,
-    /// Substeps simulated so far.
+    /// Substeps simulated so far, counted in substeps of the budget it was taken at.
     pub elapsed_substeps: u64,
+    /// That budget's substeps per frame (0: the restoring simulation's own, as in checkpoints
+    /// written before drape recorded it). An accuracy target retries a frame at another budget
+    /// from a snapshot taken at the old one: the clock must be read in the old one's substeps.
+    pub substeps: u32,
     /// Fastest any attached particle, keyframed collider or shell has moved [m/s].
     pub driven_speed: f32,
     /// Springs broken so far.
@@ -62,6 +66,7 @@ impl Simulation {
             positions: self.state.positions.clone(),
             velocities: self.state.velocities.clone(),
             elapsed_substeps: self.elapsed_substeps,
+            substeps: self.substeps,
             driven_speed: self.driven_speed,
             torn_springs: self.torn_springs,
             force_work: self.force_work,
@@ -75,6 +80,7 @@ impl Simulation {
     /// and the colliders' poses. Errors say what does not fit (another garment layout).
     pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), String> {
         let n = self.model.particle_count();
+        let elapsed_substeps = self.elapsed_substeps_of(snapshot)?;
         if snapshot.positions.len() != n || snapshot.velocities.len() != n {
             return Err(format!(
                 "it holds {} particles, the scene has {n}",
@@ -131,7 +137,7 @@ impl Simulation {
         self.state.positions = snapshot.positions.clone();
         self.state.velocities = snapshot.velocities.clone();
         self.set_nearby_lists(snapshot.nearby.clone());
-        self.elapsed_substeps = snapshot.elapsed_substeps;
+        self.elapsed_substeps = elapsed_substeps;
         self.torn_springs = snapshot.torn_springs;
         self.force_work = snapshot.force_work;
         if self.elapsed_substeps > 0 {
@@ -142,5 +148,23 @@ impl Simulation {
         }
         self.driven_speed = snapshot.driven_speed;
         Ok(())
+    }
+
+    /// `snapshot`'s clock in this simulation's substeps: the same count when they are the
+    /// snapshot's, else its whole frames (a snapshot is taken between frames) times ours.
+    fn elapsed_substeps_of(&self, snapshot: &Snapshot) -> Result<u64, String> {
+        let theirs = snapshot.substeps as u64;
+        let ours = self.substeps as u64;
+        if theirs == 0 || theirs == ours {
+            return Ok(snapshot.elapsed_substeps);
+        }
+        if snapshot.elapsed_substeps % theirs != 0 {
+            return Err(format!(
+                "it was taken within a frame ({} substeps of {theirs} per frame), at another \
+                 budget than the scene's {ours}",
+                snapshot.elapsed_substeps
+            ));
+        }
+        Ok(snapshot.elapsed_substeps / theirs * ours)
     }
 }
