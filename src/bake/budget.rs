@@ -28,6 +28,10 @@ pub const LADDER: [(u32, u32); 8] = [
 /// Frames in a row with a large margin after which a lower budget is tried.
 pub const CALM_FRAMES: u32 = 10;
 
+/// Frames after a raise whose kinetic energy is capped ([`Simulation::settle_frame`]): the
+/// springs a cheaper budget left stretched shorten over about two frames at the next budget.
+pub const SETTLE_FRAMES: u32 = 3;
+
 /// The running state of the budget (carried through checkpoints).
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct BudgetState {
@@ -37,6 +41,10 @@ pub struct BudgetState {
     pub calm: u32,
     /// Why the budget changed after the last frame, for the next frame's record.
     pub pending_why: String,
+    /// Frames still to settle after the last raise ([`SETTLE_FRAMES`]; absent in checkpoints
+    /// of drape before settling: none).
+    #[serde(default)]
+    pub settle: u32,
 }
 
 /// What the report says of each frame's budget.
@@ -53,6 +61,9 @@ pub struct FrameBudget {
     /// Its worst structural strain and deepest penetration [m].
     pub max_strain: f64,
     pub deepest_penetration: f32,
+    /// Kinetic energy the frame's settling took out [J] (0 when it did not settle).
+    #[serde(default)]
+    pub settled_joules: f64,
 }
 
 /// The targets and the ladder a scene's budget moves on.

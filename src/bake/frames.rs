@@ -1,7 +1,7 @@
 //! The frame loop: step, tear, measure and write each frame as it is made (with a checkpoint
 //! now and then), until the last, until the simulation becomes unstable or until a signal.
 
-use super::budget::{BudgetReport, FrameBudget, Targets, CALM_FRAMES};
+use super::budget::{BudgetReport, FrameBudget, Targets, CALM_FRAMES, SETTLE_FRAMES};
 use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics};
@@ -212,6 +212,9 @@ fn step_within(
     let mut attempts = 1;
     let mut why = std::mem::take(&mut progress.budget.pending_why);
     let (strain, depth) = loop {
+        if progress.budget.settle > 0 {
+            sim.settle_frame();
+        }
         backend.step_frame(sim)?;
         let (strain, depth) = accuracy_of(sim, meshes, index);
         match t.missed(strain, depth) {
@@ -220,6 +223,7 @@ fn step_within(
                     .expect("a simulation takes its own snapshot");
                 progress.budget.level += 1;
                 progress.budget.calm = 0;
+                progress.budget.settle = SETTLE_FRAMES;
                 t.apply(sim, progress.budget.level);
                 let (s, i) = t.levels[progress.budget.level];
                 why = format!("{reason}: raised to {s} substeps × {i} iterations");
@@ -238,11 +242,18 @@ fn step_within(
         why,
         max_strain: strain,
         deepest_penetration: depth,
+        settled_joules: if progress.budget.settle > 0 {
+            sim.settled_energy()
+        } else {
+            0.0
+        },
     });
+    progress.budget.settle = progress.budget.settle.saturating_sub(1);
     let top = t.levels.len() - 1;
     if t.close(strain, depth) && progress.budget.level < top {
         progress.budget.level += 1;
         progress.budget.calm = 0;
+        progress.budget.settle = SETTLE_FRAMES;
         t.apply(sim, progress.budget.level);
         progress.budget.pending_why =
             "the last frame came within a quarter of a target: raised".into();

@@ -53,6 +53,10 @@ pub struct Simulation {
     scratch: Vec<Vec4>,
     /// Displacement of every particle over the current substep (the solver's unknown).
     delta: Vec<Vec4>,
+    /// The cap on the current frame's kinetic energy, while it settles ([`Simulation::settle_frame`]).
+    settle: Option<EnergyCap>,
+    /// Kinetic energy the last settled frame took out [J].
+    settled: f64,
     pub substeps: u32,
     /// Length of one substep [s].
     pub step: f32,
@@ -198,6 +202,8 @@ impl Simulation {
             projection: vec![Vec4::ZERO; model.springs.len()],
             scratch: vec![Vec4::ZERO; model.particle_count()],
             delta: vec![Vec4::ZERO; model.particle_count()],
+            settle: None,
+            settled: 0.0,
             colliders: scene
                 .colliders
                 .iter()
@@ -306,6 +312,7 @@ impl Simulation {
             && self.attachments.list.is_empty()
             && self.collider_motion.is_empty()
             && self.forces.is_none()
+            && self.settle.is_none()
         {
             self.run_substeps(self.substeps, None, false, false);
         } else {
@@ -314,12 +321,79 @@ impl Simulation {
             let start = std::time::Instant::now();
             self.focus_shells(true);
             self.stage_times.lap(schedule::timed("shells"), start);
+            // A settling frame caps the kinetic energy after each substep, so no `finish`
+            // predicts the next substep from velocities the cap is about to scale.
+            let settling = self.settle.is_some();
             for _ in 0..self.substeps {
-                self.substep_in_frame(true);
+                self.substep_in_frame(!settling);
+                self.cap_kinetic_energy();
             }
+            self.settle = None;
             self.predicted_at = None;
             self.focus_checked_at = None;
         }
+    }
+
+    /// Caps the coming frame's kinetic energy, after each of its substeps, at what the frame
+    /// starts with plus what gravity and the force fields have given since and what the
+    /// fastest driven motion could carry (½ M v²); velocities above it are scaled down alike.
+    ///
+    /// For a frame after an accuracy target raised the budget: a cheaper budget leaves springs
+    /// stretched that the larger one pulls back (a flag at 10 × 2 held 26 J in springs 8 %
+    /// long where 40 × 10 holds 0.4), and that energy, which no force supplied, came out as
+    /// motion: the flag thrashed at 15 m/s and the stability rule stopped the bake. Capped, the
+    /// springs still shorten, and the energy they free is taken out.
+    pub fn settle_frame(&mut self) {
+        let (kinetic, gravitational) = self.kinetic_and_gravitational_energy();
+        self.settle = Some(EnergyCap {
+            kinetic,
+            gravitational,
+            work: self.force_work,
+        });
+        self.settled = 0.0;
+    }
+
+    /// Kinetic energy the last settled frame took out [J] (0 when none was settled).
+    pub fn settled_energy(&self) -> f64 {
+        self.settled
+    }
+
+    /// The kinetic and gravitational energy of the particles the simulation moves [J].
+    fn kinetic_and_gravitational_energy(&self) -> (f64, f64) {
+        let g = self.gravity.as_dvec3();
+        let free = (self.state.positions.iter().zip(&self.state.velocities))
+            .zip(self.model.mass.iter().zip(&self.model.inv_mass))
+            .filter(|(_, (_, &w))| w != 0.0);
+        free.fold((0.0, 0.0), |(k, u), ((x, v), (&m, _))| {
+            let m = m as f64;
+            (
+                k + 0.5 * m * v.truncate().as_dvec3().length_squared(),
+                u - m * g.dot(x.truncate().as_dvec3()),
+            )
+        })
+    }
+
+    /// Scales the moving particles' velocities down to the settling frame's cap, if above it.
+    fn cap_kinetic_energy(&mut self) {
+        let Some(cap) = self.settle else {
+            return;
+        };
+        let (kinetic, gravitational) = self.kinetic_and_gravitational_energy();
+        let mass: f64 = self.model.mass.iter().map(|&m| m as f64).sum();
+        let allowed = cap.kinetic
+            + (cap.gravitational - gravitational).max(0.0)
+            + (self.force_work - cap.work).max(0.0)
+            + 0.5 * mass * (self.driven_speed as f64).powi(2);
+        if kinetic <= allowed || kinetic <= 0.0 {
+            return;
+        }
+        let scale = (allowed / kinetic).sqrt() as f32;
+        for (v, &w) in self.state.velocities.iter_mut().zip(&self.model.inv_mass) {
+            if w != 0.0 {
+                *v *= scale;
+            }
+        }
+        self.settled += kinetic - allowed;
     }
 
     /// Advances one substep.
@@ -874,6 +948,15 @@ impl Simulation {
     pub fn integrating(&self) -> bool {
         self.verlet.is_some()
     }
+}
+
+/// What a settling frame's kinetic energy is capped by ([`Simulation::settle_frame`]): the
+/// energies it started with and the force fields' work until then [J].
+#[derive(Clone, Copy, Debug)]
+struct EnergyCap {
+    kinetic: f64,
+    gravitational: f64,
+    work: f64,
 }
 
 /// What drives one frame, substep by substep (see [`Simulation::drive_frame`]).

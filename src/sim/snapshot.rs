@@ -138,6 +138,7 @@ impl Simulation {
         self.state.velocities = snapshot.velocities.clone();
         self.set_nearby_lists(snapshot.nearby.clone());
         self.elapsed_substeps = elapsed_substeps;
+        self.settle = None;
         self.torn_springs = snapshot.torn_springs;
         self.force_work = snapshot.force_work;
         if self.elapsed_substeps > 0 {
