@@ -269,3 +269,44 @@ fn a_checkpoint_of_a_changed_scene_is_refused_naming_the_field() {
         (Some(20), Some(12))
     );
 }
+
+#[test]
+fn a_bake_with_accuracy_targets_resumes_bit_for_bit_within_a_settling_raise() {
+    // The flag at a 10 % strain target: the budget climbs from 10 × 2 around frame 27, a frame is
+    // simulated again at larger budgets, and the frames after the raise settle. A chunk that
+    // stops at frame 28 leaves a checkpoint in the middle of all that; the clock there counts
+    // in the raised budget's substeps.
+    let dir = common::temp_dir();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/flag.json");
+    let mut scene = Scene::load(&path).unwrap();
+    scene.frames = 34;
+    scene.substeps = None;
+    scene.iterations_given = false;
+    scene.accuracy = Some(drape::scene::AccuracySpec {
+        max_strain: Some(0.10),
+        max_penetration: None,
+    });
+    scene.output.obj = false;
+    scene.output.gltf = GltfOutput::None;
+    scene.output.pc2 = true;
+    let whole = dir.path().join("whole");
+    bake(&scene, &options(&whole, Resume::No, None)).unwrap();
+    let whole_report = report(&whole);
+    let frames = whole_report["budget"]["per_frame"].as_array().unwrap();
+    let settled = |f: &serde_json::Value| f["settled_joules"].as_f64().unwrap() > 0.0;
+    assert!(
+        frames[25..31].iter().any(settled),
+        "a raise settles between frames 26 and 31"
+    );
+    let part = dir.path().join("part");
+    bake(&scene, &options(&part, Resume::No, Some(28))).unwrap();
+    bake(&scene, &options(&part, Resume::Last, None)).unwrap();
+    let resumed = report(&part);
+    assert_eq!(resumed["resumed"]["after_frame"], 28);
+    assert_same_frames(&whole_report, &resumed);
+    assert_eq!(
+        whole_report["budget"], resumed["budget"],
+        "the same budgets"
+    );
+    assert_same_files(&whole, &part);
+}
