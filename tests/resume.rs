@@ -1,9 +1,9 @@
 //! Checkpoints and resume: a bake stopped part way (at a chunk's end, by SIGINT, or killed with
 //! SIGKILL) and resumed gives the same frames, bit for bit, as the bake that never stopped, in
 //! the report (`frames_hash`, every per-frame measure) and in every file written (OBJ with torn
-//! faces, PC2), also with accuracy targets choosing the budget; `--from-frame` re-simulates from an earlier checkpoint to the same frames; a
-//! checkpoint is refused for a changed scene (exit 2 naming the field), leaving the bake as it
-//! was.
+//! faces, PC2), also with accuracy targets choosing the budget; `--from-frame` re-simulates from
+//! an earlier checkpoint to the same frames; a checkpoint is refused for a changed scene (exit 2
+//! naming the field), leaving the bake as it was.
 
 mod common;
 
