@@ -1515,6 +1515,29 @@ impl ShellCollider {
         self.with_friction(x3, contact)
     }
 
+    /// The distance from `x` to the nearest shell particle in `nearby` (∞ when none is left):
+    /// a collision pass whose particle is nearer `x` than that less the contact reach meets none
+    /// of them, while the shell stands still (within a substep).
+    pub fn nearest_listed(&self, x: Vec4, nearby: &Nearby) -> f32 {
+        let x3 = x.truncate();
+        let count = self.now.len();
+        let listed = nearby.iter().take_while(|&&i| i != u32::MAX);
+        listed
+            .map(|&i| i as usize)
+            .filter(|&i| i < count)
+            .map(|i| (x3 - self.now[i]).length_squared())
+            .fold(f32::INFINITY, f32::min)
+            .sqrt()
+    }
+
+    /// What [`ShellCollider::resolve_nearby`] returns for a particle in reach of none of its
+    /// listed shell particles, to the bit.
+    #[inline]
+    pub fn untouched(x: Vec4, delta: Vec4) -> Vec4 {
+        let x3 = x.truncate();
+        ((x3 + delta.truncate()) - x3).extend(0.0)
+    }
+
     /// Pushes the end point `p` of a path from `x3` out of the shell particles `each` visits
     /// that it lies within `reach` of, then applies friction; lists the nearest of them in
     /// `nearby` (see [`ShellCollider::resolve`]).
@@ -2164,6 +2187,53 @@ mod tests {
         assert!(
             pushed > 300 && swept > 20,
             "{pushed} pushed, {swept} caught on their way"
+        );
+    }
+
+    #[test]
+    fn a_pass_left_out_by_the_gap_is_the_pass_to_the_bit() {
+        // A floor patch of shell particles 9 mm apart; garment particles listed above it, then
+        // moved by passes of every size towards it: wherever the gap less the displacement
+        // clears the reach, the full pass finds no contact and returns what `untouched` does.
+        let points: Vec<Vec3> = (0..30)
+            .flat_map(|i| (0..30).map(move |j| Vec3::new(0.009 * i as f32, 0.0, 0.009 * j as f32)))
+            .collect();
+        let mut s = ShellCollider::new("s".into(), 0.01, 0.3, vec![points.clone(), points]);
+        s.normals = vec![vec![Vec3::Y; 900], vec![Vec3::Y; 900]];
+        s.advance(0.0, 0.5, 0.0025);
+        let (radius, reach) = (0.0025, 0.0125);
+        let (mut left_out, mut met) = (0, 0);
+        for k in 0..3000 {
+            let u = (k as f32 * 0.618_034).fract();
+            let v = (k as f32 * 0.754_878).fract();
+            let x = Vec4::new(
+                0.03 + 0.2 * u,
+                0.0126 + 0.02 * v,
+                0.03 + 0.2 * (k as f32 * 0.569_84).fract(),
+                0.0,
+            );
+            let mut list = [u32::MAX; NEARBY];
+            s.resolve(x, Vec4::ZERO, radius, Some(&mut list));
+            if list[0] == u32::MAX {
+                continue;
+            }
+            let gap = s.nearest_listed(x, &list);
+            let d = Vec4::new(0.001 * u, -0.02 * (k % 11) as f32 / 10.0, 0.0, 0.0);
+            let full = s.resolve_nearby(x, d, radius, &list);
+            if gap - d.truncate().length() > reach + 1e-6 {
+                assert_eq!(
+                    full,
+                    ShellCollider::untouched(x, d),
+                    "path {k} from {x} by {d}"
+                );
+                left_out += 1;
+            } else if full != ShellCollider::untouched(x, d) {
+                met += 1;
+            }
+        }
+        assert!(
+            left_out > 500 && met > 500,
+            "{left_out} left out, {met} met the shell"
         );
     }
 

@@ -32,6 +32,11 @@ use team::{Member, Shared};
 /// made again [m].
 const FOCUS_SLACK: f32 = 0.02;
 
+/// How much nearer than its gap less the reach a particle must stay for a collision pass to
+/// leave its shell test out [m]: a micrometre, far above the rounding of the distances (positions
+/// of a few metres round to 10⁻⁷ m), far below anything a contact resolves.
+const GAP_SLACK: f32 = 1e-6;
+
 /// A running simulation of one scene's garments.
 pub struct Simulation {
     /// Private: the solver indexes it unchecked, so it must not change after validation.
@@ -78,6 +83,9 @@ pub struct Simulation {
     /// so the particles near no shell (most of a garment) cost them one byte, not a list's 64
     /// (P's lists are 530 KB, more than a core's L2, read nine times a substep).
     listed: Vec<u8>,
+    /// Per listed particle and shell, its distance at the substep's start from the nearest
+    /// shell particle in its list (measured by the first collision pass, read by the others).
+    listed_gap: Vec<f32>,
     /// The substep (count since the bake's start) whose prediction the last `finish` already
     /// made (within [`Simulation::step_frame`] only).
     predicted_at: Option<u64>,
@@ -193,6 +201,7 @@ impl Simulation {
             pushes,
             nearby: Vec::new(),
             listed: Vec::new(),
+            listed_gap: Vec::new(),
             predicted_at: None,
             focus_checked_at: None,
             outran: std::sync::atomic::AtomicBool::new(false),
@@ -775,6 +784,8 @@ impl Simulation {
         }
         let nearby = Shared::new(&mut self.nearby);
         let listed = Shared::new(&mut self.listed);
+        self.listed_gap.resize(nearby_len, f32::INFINITY);
+        let listed_gap = Shared::new(&mut self.listed_gap);
         let clearance_len = if passes > 1 {
             self.model.particle_count()
         } else {
@@ -814,6 +825,7 @@ impl Simulation {
             pushes: self.particle_collisions.is_some().then_some(pushes),
             nearby,
             listed,
+            listed_gap,
             clearance,
             quiet: &self.quiet,
             all_quiet: self.quiet.iter().all(|&q| q),
@@ -1020,6 +1032,8 @@ struct Stages<'a> {
     nearby: Shared<crate::collide::shell::Nearby>,
     /// How many entries each nearby list holds.
     listed: Shared<u8>,
+    /// Each list's gap ([`Simulation::listed_gap`]).
+    listed_gap: Shared<f32>,
     /// Each particle's clearance from the quiet colliders (with collision passes).
     clearance: Shared<f32>,
     /// Which colliders are quiet ([`Collider::is_quiet`]), and whether all are.
@@ -1132,9 +1146,24 @@ impl Stages<'_> {
                 d = self.resolve_colliders(x, d, r, clearance);
                 for (k, s) in self.shells.iter().enumerate() {
                     let at = k * particles + i;
-                    if self.listed.get(at) != 0 {
-                        d = s.resolve_nearby(x, d, r, &self.nearby.get(at));
+                    if self.listed.get(at) == 0 {
+                        continue;
                     }
+                    // The shell stands still within the substep: a particle nearer its start
+                    // than its gap less the reach meets none of its listed shell particles (three
+                    // in four passes on P), and the test is left out, with its result.
+                    let gap = if first {
+                        let g = s.nearest_listed(x, &self.nearby.get(at));
+                        self.listed_gap.set(at, g);
+                        g
+                    } else {
+                        self.listed_gap.get(at)
+                    };
+                    d = if gap - d.truncate().length() > s.radius + r + GAP_SLACK {
+                        ShellCollider::untouched(x, d)
+                    } else {
+                        s.resolve_nearby(x, d, r, &self.nearby.get(at))
+                    };
                 }
                 b.delta.set(i, d);
             }
