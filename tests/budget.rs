@@ -154,7 +154,7 @@ fn a_frame_simulated_again_at_another_budget_starts_at_its_own_time() {
 
 /// After a raise, the springs a cheaper budget left stretched shorten without throwing the
 /// cloth about: the flag at 10 substeps × 2 iterations holds about 26 J in springs up to 8 %
-/// long (0.4 J at 40 × 10); at 80 × 20 that energy came out as motion within a frame, 18 J of
+/// long (0.1 J at 40 × 10); at 80 × 20 that energy came out as motion within a frame, 18 J of
 /// kinetic energy against 1 J released or supplied, and the stability rule stopped the bake.
 /// Settled frames cap the kinetic energy at what gravity, the wind and the frame's start give.
 #[test]

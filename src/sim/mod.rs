@@ -349,7 +349,7 @@ impl Simulation {
     ///
     /// For a frame after an accuracy target raised the budget: a cheaper budget leaves springs
     /// stretched that the larger one pulls back (a flag at 10 × 2 held 26 J in springs 8 %
-    /// long where 40 × 10 holds 0.4), and that energy, which no force supplied, came out as
+    /// long where 40 × 10 holds 0.1), and that energy, which no force supplied, came out as
     /// motion: the flag thrashed at 15 m/s and the stability rule stopped the bake. Capped, the
     /// springs still shorten, and the energy they free is taken out.
     pub fn settle_frame(&mut self) {
