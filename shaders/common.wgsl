@@ -81,7 +81,7 @@ struct Contacts {
     nearby: u32,               // 1: `finish` lists each particle's nearby shell particles
 }
 
-// A character's shell (src/collide/shell.rs): where its particles and grid sit in one
+// A character's shell (src/collide/shell/): where its particles and grid sit in one
 // substep's share of `shell_particle` and `shell_grid`, and its constants.
 struct ShellInfo {
     first: u32,                // first particle

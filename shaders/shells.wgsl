@@ -1,4 +1,4 @@
-// Characters' shells on the GPU, mirroring `src/collide/shell.rs` step for step
+// Characters' shells on the GPU, mirroring `src/collide/shell/` step for step
 // (ShellCollider::resolve, push_out, first_contact and the nearby lists of collision passes).
 // Included before `finish.wgsl` (see `gpu::kernels::source`).
 
@@ -73,7 +73,7 @@ struct PushOut {
     skin: vec3<f32>,
     contacts: u32,
     // The nearest candidates within two reaches of where the gathering looked, sorted by
-    // squared distance, then index (Nearest in shell.rs).
+    // squared distance, then index (Nearest in src/collide/shell/mod.rs).
     listed: u32,
     near: array<u32, 16>,
     far: array<f32, 16>,
