@@ -202,11 +202,7 @@ fn a_raised_budget_takes_out_the_stretch_a_cheaper_one_left_without_throwing_the
 #[test]
 fn the_poncho_meets_its_targets_in_every_frame_with_nothing_inside_the_mannequin() {
     let dir = common::temp_dir();
-    let mut scene = Scene::default_scene(&dir.path().join("mannequin")).unwrap();
-    scene.frames = 60;
-    scene.backend = drape::scene::BackendKind::Cpu;
-    scene.output.obj = false;
-    scene.output.gltf = drape::scene::GltfOutput::None;
+    let mut scene = common::scene_p(dir.path(), 60);
     scene.substeps = None;
     scene.iterations_given = false;
     scene.accuracy = Some(drape::scene::AccuracySpec {

@@ -119,11 +119,7 @@ fn a_torn_cloth_resumed_from_a_chunk_or_an_earlier_frame_matches_the_whole_bake(
 fn the_poncho_on_the_mannequin_resumes_bit_for_bit() {
     // Characters' shells, collision passes with their nearby lists, a static stool.
     let dir = common::temp_dir();
-    let mut scene = Scene::default_scene(&dir.path().join("mannequin")).unwrap();
-    scene.frames = 6;
-    scene.backend = drape::scene::BackendKind::Cpu;
-    scene.output.obj = false;
-    scene.output.gltf = GltfOutput::None;
+    let scene = common::scene_p(dir.path(), 6);
     assert!(scene.solver.contact_passes > 1);
     let whole = dir.path().join("whole");
     bake(&scene, &options(&whole, Resume::No, None)).unwrap();

@@ -11,6 +11,17 @@ pub fn scene(json: &str) -> Scene {
     Scene::parse(json, "<test scene>").unwrap_or_else(|e| panic!("test scene invalid: {e}"))
 }
 
+/// Scene P (the embedded default: the poncho on the mannequin, its frames written under
+/// `dir`) for `frames` frames on the CPU, writing no frame files.
+pub fn scene_p(dir: &Path, frames: u32) -> Scene {
+    let mut scene = Scene::default_scene(&dir.join("mannequin")).expect("scene P");
+    scene.frames = frames;
+    scene.backend = drape::scene::BackendKind::Cpu;
+    scene.output.obj = false;
+    scene.output.gltf = drape::scene::GltfOutput::None;
+    scene
+}
+
 /// A fresh temporary folder, removed when dropped.
 pub fn temp_dir() -> tempfile::TempDir {
     tempfile::tempdir().expect("temporary folder")
