@@ -1,0 +1,315 @@
+//! The per-particle work of a substep's stages (prediction, collision passes, particle
+//! collisions, `finish`), with what each reads and writes: the team runs them in the order
+//! [`super::schedule::substep`] lists, each particle's on one thread.
+
+use super::integrate::Verlet;
+use super::team::{Member, Shared};
+use super::{constraint, solver, Model};
+use crate::collide::particles::{Grid, ParticleCollisions};
+use crate::collide::{Collider, ShellCollider};
+use glam::Vec4;
+use std::sync::RwLock;
+
+/// How much nearer than its gap less the reach a particle must stay for a collision pass to
+/// leave its shell test out [m]: a micrometre, far above the rounding of the distances (positions
+/// of a few metres round to 10⁻⁷ m), far below anything a contact resolves.
+const GAP_SLACK: f32 = 1e-6;
+
+/// True when the focus holds for a garment particle at `p` moving at `v` before a substep of
+/// `h` seconds under gravity `g`: it is within what its `origin` allows it (its place and
+/// allowance when the focus was made), less twice its own motion in a substep and twice the
+/// shells' fastest (`carried`).
+#[inline]
+pub(super) fn focus_holds_for(
+    p: Vec4,
+    v: Vec4,
+    (origin, allowed): (Vec4, f32),
+    (h, g, carried): (f32, f32, f32),
+) -> bool {
+    let within = 2.0 * (v.length() * h + g * h * h + carried);
+    p.distance(origin) + within <= allowed
+}
+
+/// The focus's check for the next substep ([`super::Simulation::focus_shells`]), made by
+/// `finish` as it commits each particle: `outran` is set when a particle is not within its
+/// origin's allowance.
+pub(super) struct FocusCheck<'a> {
+    pub(super) origins: &'a [(Vec4, f32)],
+    /// The substep, gravity and the shells' fastest motion in it.
+    pub(super) terms: (f32, f32, f32),
+    pub(super) outran: &'a std::sync::atomic::AtomicBool,
+}
+
+impl FocusCheck<'_> {
+    #[inline]
+    fn check(&self, i: usize, p: Vec4, v: Vec4) {
+        if !focus_holds_for(p, v, self.origins[i], self.terms) {
+            self.outran
+                .store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
+/// The per-particle stages of a substep, with what they read and write.
+pub(super) struct Stages<'a> {
+    pub(super) model: &'a Model,
+    pub(super) verlet: Option<&'a Verlet>,
+    pub(super) colliders: &'a [Collider],
+    pub(super) shells: &'a [ShellCollider],
+    pub(super) b: solver::Buffers,
+    pub(super) velocities: Shared<Vec4>,
+    /// Particle–particle pushes of this substep, when those collisions are on.
+    pub(super) pushes: Option<Shared<Vec4>>,
+    /// Nearby shell particles of each garment particle, per shell (empty with one pass).
+    pub(super) nearby: Shared<crate::collide::shell::Nearby>,
+    /// How many entries each nearby list holds.
+    pub(super) listed: Shared<u8>,
+    /// Each list's gap ([`super::Simulation::listed_gap`]).
+    pub(super) listed_gap: Shared<f32>,
+    /// Each particle's clearance from the quiet colliders (with collision passes).
+    pub(super) clearance: Shared<f32>,
+    /// Which colliders are quiet ([`Collider::is_quiet`]), and whether all are.
+    pub(super) quiet: &'a [bool],
+    pub(super) all_quiet: bool,
+    /// Each particle's acceleration by the force fields (empty without).
+    pub(super) external: &'a [Vec4],
+    /// Where the next substep ends (fractional frame), when `finish` places the shells for it
+    /// ahead ([`ShellCollider::place_ahead`]); and the largest contact radius they are gridded
+    /// for.
+    pub(super) place_ahead: Option<f32>,
+    pub(super) contact_reach: f32,
+    /// Whether the shells' focus holds for the next substep, checked per particle.
+    pub(super) focus_check: Option<FocusCheck<'a>>,
+}
+
+impl Stages<'_> {
+    /// Particle–particle collisions: one thread sorts the predicted positions q = x + Δ into
+    /// the grid, then every thread computes its particles' pushes (added by `finish`).
+    pub(super) fn particle_collisions(
+        &self,
+        m: &Member,
+        pc: &ParticleCollisions,
+        grid: &RwLock<Grid>,
+    ) {
+        let (model, b) = (self.model, &self.b);
+        // SAFETY: between two syncs nobody writes x or Δ.
+        let (x, d) = unsafe { (b.x.read_all(), b.delta.read_all()) };
+        let q = |i: usize| x[i] + d[i];
+        if m.leads() {
+            pc.build(q, &mut grid.write().expect("not poisoned"));
+        }
+        m.sync();
+        let g = grid.read().expect("not poisoned");
+        let pushes = self.pushes.expect("particle collisions have pushes");
+        for i in m.particles(&model.colour_ranges) {
+            // SAFETY: each particle's push is written by its own thread.
+            unsafe { pushes.set(i, pc.push_out(i, q, &model.inv_mass, &g)) };
+        }
+        drop(g);
+        m.sync();
+    }
+
+    /// This thread's particles the simulation moves (pinned and attached ones are never
+    /// written, so other threads may read them in any stage).
+    fn free_particles<'m>(&'m self, m: &'m Member) -> impl Iterator<Item = usize> + 'm {
+        m.particles(&self.model.colour_ranges)
+            .filter(|&i| self.model.inv_mass[i] != 0.0)
+    }
+
+    /// Predicts this thread's free particles: Δ and t become the inertial displacement (zero
+    /// without integration). Pinned particles keep Δ = t = 0 from the start and are never written,
+    /// so other threads may read them in any stage.
+    pub(super) fn predict(&self, m: &Member) {
+        for i in self.free_particles(m) {
+            // SAFETY: a free particle is read and written by its own thread only.
+            unsafe { self.predict_one(i) };
+        }
+    }
+
+    /// # Safety
+    /// `i` is a free particle of the calling thread.
+    #[inline(always)]
+    unsafe fn predict_one(&self, i: usize) {
+        let t = match self.verlet {
+            Some(v) if !self.external.is_empty() => {
+                v.inertial_displacement(self.velocities.get(i))
+                    + self.external[i] * (v.step * v.step)
+            }
+            Some(v) => v.inertial_displacement(self.velocities.get(i)),
+            None => Vec4::ZERO,
+        };
+        self.b.delta.set(i, t);
+        self.b.target.set(i, t);
+    }
+
+    /// A collision pass inside the solve, for the free particles (shared out by their cost,
+    /// [`Member::balanced`]): collisions and friction on Δ as at the end of the substep, the
+    /// characters' shells tested only against each particle's nearby shell particles.
+    ///
+    /// The quiet colliders (static, swept, with an exact distance: a floor) are skipped for a
+    /// particle whose displacement is shorter than its clearance, the least of their distances
+    /// from where it starts the substep less its contact radius (measured at the substep's
+    /// first pass): exactly where `Collider::resolve` would return the displacement unchanged
+    /// from its first test, at a tenth of the cost (P's floor cost 3.4 of its 40 ms per frame).
+    pub(super) fn contact_pass(&self, m: &Member, first: bool) {
+        let (model, b) = (self.model, &self.b);
+        let particles = model.particle_count();
+        m.balanced(&model.storage_of, |i| {
+            if model.inv_mass[i] == 0.0 {
+                return;
+            }
+            // SAFETY: particle i is this thread's alone in this stage.
+            unsafe {
+                // Most of a garment is near no shell and clear of the quiet colliders: what
+                // follows would leave it as it is (read without its position).
+                if !first
+                    && self.all_quiet
+                    && (0..self.shells.len()).all(|k| self.listed.get(k * particles + i) == 0)
+                    && (self.colliders.is_empty()
+                        || self.clearance.get(i) >= b.delta.get(i).truncate().length())
+                {
+                    return;
+                }
+                let x = b.x.get(i);
+                let mut d = b.delta.get(i);
+                let r = model.contact_radius[i];
+                let clearance = if first {
+                    let c = self.clearance_of(x, r);
+                    self.clearance.set(i, c);
+                    c
+                } else {
+                    self.clearance.get(i)
+                };
+                d = self.resolve_colliders(x, d, r, clearance);
+                for (k, s) in self.shells.iter().enumerate() {
+                    let at = k * particles + i;
+                    if self.listed.get(at) == 0 {
+                        continue;
+                    }
+                    // The shell stands still within the substep: a particle nearer its start
+                    // than its gap less the reach meets none of its listed shell particles (three
+                    // in four passes on P), and the test is left out, with its result.
+                    let gap = if first {
+                        let g = s.nearest_listed(x, &self.nearby.get(at));
+                        self.listed_gap.set(at, g);
+                        g
+                    } else {
+                        self.listed_gap.get(at)
+                    };
+                    d = if gap - d.truncate().length() > s.radius + r + GAP_SLACK {
+                        ShellCollider::untouched(x, d)
+                    } else {
+                        s.resolve_nearby(x, d, r, &self.nearby.get(at))
+                    };
+                }
+                b.delta.set(i, d);
+            }
+        });
+    }
+
+    /// Every collider's `resolve` in turn, skipping the quiet ones while the displacement is
+    /// shorter than `clearance` (−∞: none skipped, and no length computed).
+    #[inline]
+    fn resolve_colliders(&self, x: Vec4, mut d: Vec4, r: f32, clearance: f32) -> Vec4 {
+        if clearance == f32::NEG_INFINITY {
+            for c in self.colliders {
+                d = c.resolve(x, d, r);
+            }
+            return d;
+        }
+        let mut length = d.truncate().length();
+        for (c, &quiet) in self.colliders.iter().zip(self.quiet) {
+            if quiet && clearance >= length {
+                continue;
+            }
+            d = c.resolve(x, d, r);
+            length = d.truncate().length();
+        }
+        d
+    }
+
+    /// The least distance of `x` from the quiet colliders less `radius` (−∞ without any).
+    #[inline]
+    fn clearance_of(&self, x: Vec4, radius: f32) -> f32 {
+        let x = x.truncate();
+        (self.colliders.iter().zip(self.quiet))
+            .filter(|(_, &quiet)| quiet)
+            .map(|(c, _)| c.distance(x).0 - radius)
+            .reduce(f32::min)
+            .unwrap_or(f32::NEG_INFINITY)
+    }
+
+    /// Ends the substep for the free particles (shared out by their cost, [`Member::balanced`]):
+    /// long-range attachments to the pins, collisions, then x += Δ and v = Δ/h; and, when
+    /// `predict_next`, the next prediction.
+    pub(super) fn finish(&self, m: &Member, predict_next: bool) {
+        let (model, b) = (self.model, &self.b);
+        // The leader places the shells for the next substep first (see `place_ahead`).
+        let place_ahead = || {
+            if let (Some(to), true) = (self.place_ahead, m.leads()) {
+                for s in self.shells {
+                    s.place_ahead(to, self.contact_reach);
+                }
+            }
+        };
+        m.balanced_after(&model.storage_of, place_ahead, |i| {
+            if model.inv_mass[i] == 0.0 {
+                if let Some(c) = &self.focus_check {
+                    // SAFETY: pinned and attached particles are never written in a stage.
+                    unsafe { c.check(i, b.x.get(i), self.velocities.get(i)) };
+                }
+                return;
+            }
+            // SAFETY: particle i is this thread's alone in this stage; the pins read by the
+            // tethers are never written.
+            unsafe {
+                let x = b.x.get(i);
+                let mut d = b.delta.get(i);
+                if let Some(p) = &self.pushes {
+                    d += p.get(i);
+                }
+                let tethers = model.tether_start[i] as usize..model.tether_start[i + 1] as usize;
+                for t in &model.tethers[tethers] {
+                    let p = t.pin as usize;
+                    let offset = (x - b.x.get(p)) + (d - b.target.get(p));
+                    d += constraint::tether_correction(offset, t.rest);
+                }
+                let r = model.contact_radius[i];
+                // The clearance the substep's first collision pass measured (−∞ without passes).
+                let clearance = if self.clearance.is_empty() {
+                    f32::NEG_INFINITY
+                } else {
+                    self.clearance.get(i)
+                };
+                d = self.resolve_colliders(x, d, r, clearance);
+                let particles = model.particle_count();
+                for (k, s) in self.shells.iter().enumerate() {
+                    // With collision passes, list the shell particles near i for the next ones.
+                    let at = k * particles + i;
+                    if self.nearby.is_empty()
+                        || (self.listed.get(at) == 0 && s.out_of_reach(x, d, r))
+                    {
+                        // Without passes; or far from the shell with an empty list, which
+                        // stays empty (untouched: most of P's lists, 265 KB a substep, are the
+                        // stool's).
+                        d = s.resolve(x, d, r, None);
+                    } else {
+                        let list = self.nearby.get_mut(at);
+                        d = s.resolve(x, d, r, Some(&mut *list));
+                        self.listed.set(at, crate::collide::shell::listed(list));
+                    }
+                }
+                b.x.set(i, x + d);
+                if let Some(v) = self.verlet {
+                    self.velocities.set(i, v.velocity(d));
+                }
+                if let Some(c) = &self.focus_check {
+                    c.check(i, x + d, self.velocities.get(i));
+                }
+                if predict_next {
+                    self.predict_one(i);
+                }
+            }
+        });
+    }
+}
