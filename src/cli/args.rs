@@ -327,7 +327,8 @@ pub enum BenchWhat {
     Integrators,
     /// Both studies, then docs/accuracy-vs-speed.md from their results.
     Docs,
-    /// Scenes H, P, curtain and flag as shipped against accuracy targets choosing the budget:
-    /// CSV and SVG in docs/bench, the table in docs/accuracy-vs-speed.md (`--frames`: fewer).
+    /// Scenes H, P, curtain and flag as shipped against accuracy targets choosing the budget,
+    /// and P at a fixed 40 × 20: CSV and SVG in docs/bench, the table in
+    /// docs/accuracy-vs-speed.md (`--frames`: fewer).
     Budget,
 }
