@@ -133,7 +133,6 @@ fn bake_case(
     frames: Option<u32>,
     work: &Path,
 ) -> Result<Case> {
-    let accuracy = setting.accuracy.clone();
     let mut s = scene.clone();
     s.backend = BackendKind::Cpu;
     s.frames = frames.unwrap_or(s.frames);
@@ -141,7 +140,7 @@ fn bake_case(
     s.output.gltf = GltfOutput::None;
     s.output.preview = false;
     s.checkpoint_every = Some(0);
-    if accuracy.is_some() {
+    if setting.accuracy.is_some() {
         s.substeps = None;
         s.timestep = None;
         s.iterations_given = false;
@@ -152,11 +151,10 @@ fn bake_case(
         s.solver.iterations = iterations;
         s.iterations_given = true;
     }
-    s.accuracy = accuracy;
-    let setting = &setting.name;
+    s.accuracy = setting.accuracy.clone();
     let options = BakeOptions {
         out: work.join("bake"),
-        scene_file: format!("{label} ({setting})"),
+        scene_file: format!("{label} ({})", setting.name),
         threads: None,
         progress: false,
         shell_cache: Some(work.join("cache")),
@@ -176,7 +174,7 @@ fn bake_case(
         .fold(0.0f32, f32::max);
     Ok(Case {
         scene: label.to_string(),
-        setting: setting.to_string(),
+        setting: setting.name.clone(),
         ms_per_frame: r.ms_per_frame.mean,
         max_strain: r.worst_frame.as_ref().map_or(0.0, |w| w.max_strain),
         deepest,

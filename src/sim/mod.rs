@@ -356,6 +356,7 @@ impl Simulation {
             kinetic,
             gravitational,
             work: self.force_work,
+            mass: self.model.mass.iter().map(|&m| m as f64).sum(),
         });
         self.settled = 0.0;
     }
@@ -386,11 +387,10 @@ impl Simulation {
             return;
         };
         let (kinetic, gravitational) = self.kinetic_and_gravitational_energy();
-        let mass: f64 = self.model.mass.iter().map(|&m| m as f64).sum();
         let allowed = cap.kinetic
             + (cap.gravitational - gravitational).max(0.0)
             + (self.force_work - cap.work).max(0.0)
-            + 0.5 * mass * (self.driven_speed as f64).powi(2);
+            + 0.5 * cap.mass * (self.driven_speed as f64).powi(2);
         if kinetic <= allowed || kinetic <= 0.0 {
             return;
         }
@@ -961,12 +961,14 @@ impl Simulation {
 }
 
 /// What a settling frame's kinetic energy is capped by ([`Simulation::settle_frame`]): the
-/// energies it started with and the force fields' work until then [J].
+/// energies it started with and the force fields' work until then [J], and the garments' mass
+/// [kg] (what driven motion could carry is ½ M v² of the fastest).
 #[derive(Clone, Copy, Debug)]
 struct EnergyCap {
     kinetic: f64,
     gravitational: f64,
     work: f64,
+    mass: f64,
 }
 
 /// What drives one frame, substep by substep (see [`Simulation::drive_frame`]).
