@@ -94,6 +94,10 @@ pub struct Simulation {
     /// Each particle's clearance from the quiet colliders at the start of the substep (see
     /// [`Stages::contact_pass`]), kept between a substep's collision passes.
     clearance: Vec<f32>,
+    /// Per particle, how far it may move in the substep before a collision pass has anything
+    /// to do for it, and how many shells' lists it has ([`Stages::contact_pass`]; measured by
+    /// the substep's first pass).
+    pass_slack: Vec<(f32, u8)>,
     /// Which colliders are quiet in the coming substep ([`Collider::is_quiet`]; kept between
     /// substeps, so none allocates).
     quiet: Vec<bool>,
@@ -204,6 +208,7 @@ impl Simulation {
             focus_checked_at: None,
             outran: std::sync::atomic::AtomicBool::new(false),
             clearance: Vec::new(),
+            pass_slack: Vec::new(),
             quiet: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
@@ -791,6 +796,9 @@ impl Simulation {
         };
         self.clearance.resize(clearance_len, f32::NEG_INFINITY);
         let clearance = Shared::new(&mut self.clearance);
+        self.pass_slack
+            .resize(clearance_len, (f32::NEG_INFINITY, 0));
+        let pass_slack = Shared::new(&mut self.pass_slack);
         self.quiet.clear();
         self.quiet
             .extend(self.colliders.iter().map(Collider::is_quiet));
@@ -825,6 +833,7 @@ impl Simulation {
             listed,
             listed_gap,
             clearance,
+            pass_slack,
             quiet: &self.quiet,
             all_quiet: self.quiet.iter().all(|&q| q),
             external: &self.external,

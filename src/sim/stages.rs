@@ -68,6 +68,9 @@ pub(super) struct Stages<'a> {
     pub(super) listed_gap: Shared<f32>,
     /// Each particle's clearance from the quiet colliders (with collision passes).
     pub(super) clearance: Shared<f32>,
+    /// Each particle's slack in the substep's later collision passes, and its lists
+    /// ([`Stages::contact_pass`]).
+    pub(super) pass_slack: Shared<(f32, u8)>,
     /// Which colliders are quiet ([`Collider::is_quiet`]), and whether all are.
     pub(super) quiet: &'a [bool],
     pub(super) all_quiet: bool,
@@ -160,15 +163,22 @@ impl Stages<'_> {
             }
             // SAFETY: particle i is this thread's alone in this stage.
             unsafe {
-                // Most of a garment is near no shell and clear of the quiet colliders: what
-                // follows would leave it as it is (read without its position).
-                if !first
-                    && self.all_quiet
-                    && (0..self.shells.len()).all(|k| self.listed.get(k * particles + i) == 0)
-                    && (self.colliders.is_empty()
-                        || self.clearance.get(i) >= b.delta.get(i).truncate().length())
-                {
-                    return;
+                // Moved less than its slack since the substep's start (most of a garment, near
+                // no shell and clear of the quiet colliders): every test below would be left out,
+                // and each listed shell's gives its untouched result.
+                if !first && self.all_quiet {
+                    let (slack, lists) = self.pass_slack.get(i);
+                    let mut d = b.delta.get(i);
+                    if d.truncate().length() < slack {
+                        if lists > 0 {
+                            let x = b.x.get(i);
+                            for _ in 0..lists {
+                                d = ShellCollider::untouched(x, d);
+                            }
+                            b.delta.set(i, d);
+                        }
+                        return;
+                    }
                 }
                 let x = b.x.get(i);
                 let mut d = b.delta.get(i);
@@ -181,6 +191,14 @@ impl Stages<'_> {
                     self.clearance.get(i)
                 };
                 d = self.resolve_colliders(x, d, r, clearance);
+                // The least slack of the colliders and listed shells, less a margin far above
+                // the rounding of the comparisons it stands for (see `GAP_SLACK`).
+                let mut slack = if self.colliders.is_empty() {
+                    f32::INFINITY
+                } else {
+                    clearance
+                };
+                let mut lists = 0;
                 for (k, s) in self.shells.iter().enumerate() {
                     let at = k * particles + i;
                     if self.listed.get(at) == 0 {
@@ -196,11 +214,16 @@ impl Stages<'_> {
                     } else {
                         self.listed_gap.get(at)
                     };
+                    slack = slack.min(gap - (s.radius + r + GAP_SLACK));
+                    lists += 1;
                     d = if gap - d.truncate().length() > s.radius + r + GAP_SLACK {
                         ShellCollider::untouched(x, d)
                     } else {
                         s.resolve_nearby(x, d, r, &self.nearby.get(at))
                     };
+                }
+                if first {
+                    self.pass_slack.set(i, (slack - GAP_SLACK, lists));
                 }
                 b.delta.set(i, d);
             }
