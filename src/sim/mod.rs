@@ -821,6 +821,7 @@ impl Simulation {
             m.sync();
         };
         self.elapsed_substeps += count as u64;
+        let placing_ns = std::sync::atomic::AtomicU64::new(0);
         let stages = Stages {
             model,
             verlet: self.verlet.as_ref(),
@@ -838,6 +839,7 @@ impl Simulation {
             all_quiet: self.quiet.iter().all(|&q| q),
             external: &self.external,
             place_ahead,
+            placing_ns: &placing_ns,
             contact_reach,
             focus_check: check_focus.then_some(FocusCheck {
                 origins: &self.focus_origin,
@@ -904,6 +906,13 @@ impl Simulation {
         });
         self.stage_times
             .add(&times.into_inner().expect("not poisoned"));
+        // The leader placed the next substep's shells inside `finish` while the others took its
+        // particles: the placement's share of that stage's wall time is its time over the
+        // threads that shared the work, and it is the shells' (what `stages_ms` calls them).
+        let placing = placing_ns.into_inner() as f64 * 1e-9 / region.threads.max(1) as f64;
+        let times = &mut self.stage_times.seconds;
+        times[schedule::Stage::Finish.timed()] -= placing;
+        times[schedule::timed("shells")] += placing;
         self.team_stats.barriers += region.barriers;
         self.team_stats.slept += region.slept;
         if predict_after {

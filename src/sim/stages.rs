@@ -80,6 +80,9 @@ pub(super) struct Stages<'a> {
     /// ahead ([`ShellCollider::place_ahead`]); and the largest contact radius they are gridded
     /// for.
     pub(super) place_ahead: Option<f32>,
+    /// Time the leader spent placing them [ns] (moved from `finish` to `shells` in the stage
+    /// times: see [`super::Simulation`]'s `run_substeps`).
+    pub(super) placing_ns: &'a std::sync::atomic::AtomicU64,
     pub(super) contact_reach: f32,
     /// Whether the shells' focus holds for the next substep, checked per particle.
     pub(super) focus_check: Option<FocusCheck<'a>>,
@@ -270,9 +273,13 @@ impl Stages<'_> {
         // The leader places the shells for the next substep first (see `place_ahead`).
         let place_ahead = || {
             if let (Some(to), true) = (self.place_ahead, m.leads()) {
+                let start = std::time::Instant::now();
                 for s in self.shells {
                     s.place_ahead(to, self.contact_reach);
                 }
+                let took = start.elapsed().as_nanos() as u64;
+                self.placing_ns
+                    .fetch_add(took, std::sync::atomic::Ordering::Relaxed);
             }
         };
         m.balanced_after(&model.storage_of, place_ahead, |i| {
