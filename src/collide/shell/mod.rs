@@ -575,6 +575,15 @@ trait Start: Copy + Default {
     fn at(self) -> usize;
     /// `n`, which the caller checked fits.
     fn of(n: usize) -> Self;
+
+    /// Each entry becomes the sum of itself and those before it (which fits: it counts points).
+    fn running_sum(starts: &mut [Self]) {
+        let mut total = 0;
+        for s in starts {
+            total += s.at();
+            *s = Self::of(total);
+        }
+    }
 }
 
 impl Start for u16 {
@@ -585,6 +594,46 @@ impl Start for u16 {
     #[inline]
     fn of(n: usize) -> u16 {
         n as u16
+    }
+
+    /// Eight at a time, in one SSE2 register: the sums within the eight by three shifted adds,
+    /// plus the total so far; 32 empty cells (most of a box) are the total, stored at once.
+    /// The running sum over a box of 70 000–100 000 cells was more than half of a shell's
+    /// sort (60 000 of poncho_walk's 108 000 cycles per substep).
+    #[cfg(target_arch = "x86_64")]
+    fn running_sum(starts: &mut [u16]) {
+        use std::arch::x86_64::*;
+        let mut chunks = starts.chunks_exact_mut(32);
+        // SAFETY: SSE2 is part of x86_64; every load and store is of eight u16 within a chunk.
+        let total = unsafe {
+            let zero = _mm_setzero_si128();
+            // The total so far, in every lane.
+            let mut total = zero;
+            for chunk in &mut chunks {
+                let at = chunk.as_mut_ptr() as *mut __m128i;
+                let x: [__m128i; 4] = std::array::from_fn(|k| _mm_loadu_si128(at.add(k)));
+                let any = _mm_or_si128(_mm_or_si128(x[0], x[1]), _mm_or_si128(x[2], x[3]));
+                if _mm_movemask_epi8(_mm_cmpeq_epi16(any, zero)) == 0xFFFF {
+                    (0..4).for_each(|k| _mm_storeu_si128(at.add(k), total));
+                    continue;
+                }
+                for (k, mut x) in x.into_iter().enumerate() {
+                    x = _mm_add_epi16(x, _mm_slli_si128::<2>(x));
+                    x = _mm_add_epi16(x, _mm_slli_si128::<4>(x));
+                    x = _mm_add_epi16(x, _mm_slli_si128::<8>(x));
+                    x = _mm_add_epi16(x, total);
+                    _mm_storeu_si128(at.add(k), x);
+                    let last = _mm_shufflehi_epi16::<0xFF>(x);
+                    total = _mm_unpackhi_epi64(last, last);
+                }
+            }
+            _mm_extract_epi16::<0>(total) as u16
+        };
+        let mut total = total;
+        for s in chunks.into_remainder() {
+            total += *s;
+            *s = total;
+        }
     }
 }
 
@@ -617,11 +666,7 @@ fn sort_by_cell<T: Start>(
         let at = &mut start[index(c)];
         *at = T::of(at.at() + 1);
     }
-    let mut total = 0;
-    for s in start.iter_mut() {
-        total += s.at();
-        *s = T::of(total);
-    }
+    T::running_sum(start);
     items.clear();
     items.resize(cells.len(), 0);
     for (&id, &c) in ids.iter().zip(cells).rev() {
@@ -716,12 +761,30 @@ fn cell_index(p: Vec3, cell: f32) -> IVec3 {
 /// The lattice cell of a point already divided by the cell's width (`p / cell`, in either
 /// vector type: each lane's quotient is the same number).
 #[inline]
-fn floor_cell(q: impl Into<Vec3>) -> IVec3 {
+fn floor_cell(q: impl Into<Vec3A>) -> IVec3 {
+    let q: Vec3A = q.into();
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE2 is part of every x86-64 target.
+    unsafe {
+        use std::arch::x86_64::*;
+        // The three lanes at once while each is a number below 2³¹ in size, where truncation
+        // is exact and the scalar conversion's saturation never applies (the rest below):
+        // truncate, then one less where that rounded up (negative fractions). Three scalar
+        // conversions with their checks were a fifth of placing a shell.
+        let v: __m128 = q.into();
+        let size = _mm_andnot_ps(_mm_set1_ps(-0.0), v);
+        if _mm_movemask_ps(_mm_cmple_ps(size, _mm_set1_ps(2_147_483_520.0))) & 7 == 7 {
+            let truncated = _mm_cvttps_epi32(v);
+            let above = _mm_cmplt_ps(v, _mm_cvtepi32_ps(truncated));
+            let cell: [i32; 4] =
+                std::mem::transmute(_mm_add_epi32(truncated, _mm_castps_si128(above)));
+            return IVec3::new(cell[0], cell[1], cell[2]);
+        }
+    }
     let floor = |x: f32| {
         let i = x as i32;
         i.saturating_sub((x < i as f32) as i32)
     };
-    let q: Vec3 = q.into();
     IVec3::new(floor(q.x), floor(q.y), floor(q.z))
 }
 

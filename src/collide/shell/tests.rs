@@ -125,6 +125,12 @@ fn cell_index_is_floor_for_every_kind_of_value() {
         f32::NAN,
         1e-40,
         -1e-40,
+        2_147_483_520.0,
+        -2_147_483_520.0,
+        2_147_483_648.0,
+        -2_147_483_648.0,
+        -1.5,
+        -7.25,
     ];
     for &x in &values {
         for &cell in &[1.0f32, 0.0125, 3.0] {
@@ -406,4 +412,39 @@ fn a_particle_under_the_skin_goes_back_out_along_the_normal() {
     // Without the skin's normal the push follows the line between the centres: deeper in.
     let radial = resolve_under_the_skin(false);
     assert!(radial.y < -0.001, "{radial}");
+}
+
+/// The two-byte starts' running sum, eight at a time, is the running sum entry by entry, for
+/// boxes of every length around a multiple of eight, mostly empty or mostly full.
+#[test]
+fn the_running_sum_of_starts_eight_at_a_time_is_the_plain_one() {
+    let mut seed = 12345u32;
+    let mut next = || {
+        seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        seed >> 16
+    };
+    for len in (0..40).chain([1000, 1001, 1007]) {
+        for one_in in [2, 9, 50] {
+            let counts: Vec<u16> = (0..len)
+                .map(|_| {
+                    if next() % one_in == 0 {
+                        (next() % 5) as u16
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            let mut eight = counts.clone();
+            <u16 as Start>::running_sum(&mut eight);
+            let mut total = 0u16;
+            let plain: Vec<u16> = counts
+                .iter()
+                .map(|&c| {
+                    total += c;
+                    total
+                })
+                .collect();
+            assert_eq!(eight, plain, "{len} entries, one in {one_in} filled");
+        }
+    }
 }
