@@ -98,6 +98,11 @@ pub struct Simulation {
     /// to do for it, and how many shells' lists it has ([`Stages::contact_pass`]; measured by
     /// the substep's first pass).
     pass_slack: Vec<(f32, u8)>,
+    /// Whether later collision passes leave out the tests a particle's slack stands for (on by
+    /// default; off, every pass tests every particle in full, to the same result).
+    pub pass_slack_enabled: bool,
+    /// Particles later collision passes left out by their slack so far.
+    passes_left_out: std::sync::atomic::AtomicU64,
     /// Which colliders are quiet in the coming substep ([`Collider::is_quiet`]; kept between
     /// substeps, so none allocates).
     quiet: Vec<bool>,
@@ -209,6 +214,8 @@ impl Simulation {
             outran: std::sync::atomic::AtomicBool::new(false),
             clearance: Vec::new(),
             pass_slack: Vec::new(),
+            pass_slack_enabled: true,
+            passes_left_out: std::sync::atomic::AtomicU64::new(0),
             quiet: Vec::new(),
             target: vec![Vec4::ZERO; model.particle_count()],
             projection: vec![Vec4::ZERO; model.springs.len()],
@@ -302,6 +309,13 @@ impl Simulation {
     /// True when some garment can tear.
     pub fn tears(&self) -> bool {
         self.tear_strain.iter().any(Option::is_some)
+    }
+
+    /// Particles the later collision passes left out by their slack so far (see
+    /// [`Simulation::pass_slack_enabled`]).
+    pub fn passes_left_out(&self) -> u64 {
+        self.passes_left_out
+            .load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Advances one frame (all substeps).
@@ -835,6 +849,8 @@ impl Simulation {
             listed_gap,
             clearance,
             pass_slack,
+            slack_skips: self.pass_slack_enabled,
+            left_out: &self.passes_left_out,
             quiet: &self.quiet,
             all_quiet: self.quiet.iter().all(|&q| q),
             external: &self.external,

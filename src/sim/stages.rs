@@ -71,6 +71,9 @@ pub(super) struct Stages<'a> {
     /// Each particle's slack in the substep's later collision passes, and its lists
     /// ([`Stages::contact_pass`]).
     pub(super) pass_slack: Shared<(f32, u8)>,
+    /// Whether later passes use it, and how many particles they left out by it.
+    pub(super) slack_skips: bool,
+    pub(super) left_out: &'a std::sync::atomic::AtomicU64,
     /// Which colliders are quiet ([`Collider::is_quiet`]), and whether all are.
     pub(super) quiet: &'a [bool],
     pub(super) all_quiet: bool,
@@ -160,6 +163,7 @@ impl Stages<'_> {
     pub(super) fn contact_pass(&self, m: &Member, first: bool) {
         let (model, b) = (self.model, &self.b);
         let particles = model.particle_count();
+        let mut left_out = 0;
         m.balanced(&model.storage_of, |i| {
             if model.inv_mass[i] == 0.0 {
                 return;
@@ -169,7 +173,7 @@ impl Stages<'_> {
                 // Moved less than its slack since the substep's start (most of a garment, near
                 // no shell and clear of the quiet colliders): every test below would be left out,
                 // and each listed shell's gives its untouched result.
-                if !first && self.all_quiet {
+                if !first && self.all_quiet && self.slack_skips {
                     let (slack, lists) = self.pass_slack.get(i);
                     let mut d = b.delta.get(i);
                     if d.truncate().length() < slack {
@@ -180,6 +184,7 @@ impl Stages<'_> {
                             }
                             b.delta.set(i, d);
                         }
+                        left_out += 1;
                         return;
                     }
                 }
@@ -231,6 +236,8 @@ impl Stages<'_> {
                 b.delta.set(i, d);
             }
         });
+        self.left_out
+            .fetch_add(left_out, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Every collider's `resolve` in turn, skipping the quiet ones while the displacement is
