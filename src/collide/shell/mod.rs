@@ -998,11 +998,10 @@ impl HashGrid {
                     );
                 }
             } else {
-                for (k, &i) in items[first..end].iter().enumerate() {
-                    if let Some(slot) = found.get_mut(count + k).filter(|_| count + k < SHELL_FOUND)
-                    {
-                        slot.write(i);
-                    }
+                // A long run, or the last entries: one by one, as far as `found` goes.
+                let free = &mut found[count.min(SHELL_FOUND + RUN_COPY)..];
+                for (slot, &i) in free.iter_mut().zip(&items[first..end]) {
+                    slot.write(i);
                 }
             }
             count += n;

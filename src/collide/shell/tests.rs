@@ -3,8 +3,9 @@
 
 /// The dense box visits exactly the points of the cells walked, in the order x, y, z and
 /// ascending within a cell (the order of the hashed walk without collisions), also where the
-/// walk leaves the box; and a box with more cells than the table's buckets falls back to the
-/// hash, which finds every point the dense box finds.
+/// walk leaves the box; a box with more cells than the table's buckets falls back to the
+/// hash, which finds every point the dense box finds; and either grid gathers for a swept test
+/// what it walks.
 #[test]
 fn a_dense_grid_walks_the_cells_in_the_hashed_walks_order() {
     // Starts of two bytes (400 points) and of four (70 000).
@@ -64,6 +65,22 @@ fn dense_walks_in_hashed_order(count: usize) {
             let mut found = Vec::new();
             hashed.near_segment(a, b, |i| found.push(i));
             assert!(expected.iter().all(|i| found.contains(i)));
+        }
+        // Gathered a run at a time (short runs copied whole, long ones and the overflow past
+        // `SHELL_FOUND` entry by entry): the walk's points, in its order.
+        for grid in [&dense, &hashed] {
+            let mut walked = Vec::new();
+            grid.near_segment(a, b, |i| walked.push(i as u32));
+            let mut found: Found = [std::mem::MaybeUninit::uninit(); SHELL_FOUND + RUN_COPY];
+            let n = grid.gather_segment(a, b, &mut found);
+            assert_eq!(n, walked.len(), "{count} points, path {a} → {b}");
+            let kept = n.min(SHELL_FOUND);
+            // SAFETY: `gather_segment` wrote the first `kept` entries.
+            let gathered: Vec<u32> = found[..kept]
+                .iter()
+                .map(|s| unsafe { s.assume_init() })
+                .collect();
+            assert_eq!(gathered, walked[..kept], "{count} points, path {a} → {b}");
         }
         if a == b {
             let mut around = Vec::new();
