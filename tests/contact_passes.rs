@@ -105,15 +105,10 @@ fn passes_survive_a_shell_that_shrinks_between_frames() {
 fn passes_left_out_by_the_slack_change_no_bit() {
     let dir = common::temp_dir();
     let scene = common::scene_p(dir.path(), 40);
-    let build = || {
-        let mut warnings = Vec::new();
-        let cache = dir.path().join("cache");
-        let characters = drape::bake::load_characters(&scene, &cache, &mut warnings).unwrap();
-        drape::bake::simulation(&scene, characters, "P")
-            .unwrap()
-            .sim
-    };
-    let (mut slack, mut full) = (build(), build());
+    let (mut slack, mut full) = (
+        common::simulation(&scene, dir.path()),
+        common::simulation(&scene, dir.path()),
+    );
     full.pass_slack_enabled = false;
     for frame in 0..scene.frames {
         slack.step_frame();

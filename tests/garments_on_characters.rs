@@ -414,8 +414,8 @@ fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
     );
     let scene = common::scene(&text);
     let (mut focused, mut whole) = (
-        simulation(&scene, dir.path()),
-        simulation(&scene, dir.path()),
+        common::simulation(&scene, dir.path()),
+        common::simulation(&scene, dir.path()),
     );
     whole.focus_enabled = false;
     let mut fewest = usize::MAX;
@@ -487,17 +487,10 @@ fn on_both_backends(
     drape::gpu::GpuSimulation,
 ) {
     // The bake's own builder, twice (the second load reuses the shell cache).
-    let (cpu, on_gpu) = (simulation(scene, dir), simulation(scene, dir));
+    let (cpu, on_gpu) = (
+        common::simulation(scene, dir),
+        common::simulation(scene, dir),
+    );
     let gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     (cpu, on_gpu, gpu)
-}
-
-/// `scene`'s simulation as the bake builds it, its characters' shells cached under `dir`.
-fn simulation(scene: &drape::scene::Scene, dir: &Path) -> drape::sim::Simulation {
-    let mut warnings = Vec::new();
-    let characters =
-        drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
-    drape::bake::simulation(scene, characters, "<test scene>")
-        .unwrap()
-        .sim
 }

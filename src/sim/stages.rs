@@ -222,9 +222,10 @@ impl Stages<'_> {
                     } else {
                         self.listed_gap.get(at)
                     };
-                    slack = slack.min(gap - (s.radius + r + GAP_SLACK));
+                    let clear = s.radius + r + GAP_SLACK;
+                    slack = slack.min(gap - clear);
                     lists += 1;
-                    d = if gap - d.truncate().length() > s.radius + r + GAP_SLACK {
+                    d = if gap - d.truncate().length() > clear {
                         ShellCollider::untouched(x, d)
                     } else {
                         s.resolve_nearby(x, d, r, &self.nearby.get(at))

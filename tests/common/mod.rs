@@ -22,6 +22,16 @@ pub fn scene_p(dir: &Path, frames: u32) -> Scene {
     scene
 }
 
+/// `scene`'s simulation as the bake builds it, its characters' shells cached under `dir`.
+pub fn simulation(scene: &Scene, dir: &Path) -> drape::sim::Simulation {
+    let mut warnings = Vec::new();
+    let characters =
+        drape::bake::load_characters(scene, &dir.join("cache"), &mut warnings).unwrap();
+    drape::bake::simulation(scene, characters, "<test scene>")
+        .unwrap()
+        .sim
+}
+
 /// A fresh temporary folder, removed when dropped.
 pub fn temp_dir() -> tempfile::TempDir {
     tempfile::tempdir().expect("temporary folder")

@@ -163,13 +163,15 @@ impl Nearest {
     /// Adds the candidates `each` visits near `p` (positions `now`) within two reaches.
     #[inline(always)]
     fn gather(&mut self, now: &[Vec3], p: Vec3, reach: f32, each: &impl Candidates) {
-        let limit = 4.0 * reach * reach;
-        each.each(|i| {
-            let dist2 = (p - now[i]).length_squared();
-            if dist2 < limit {
-                self.insert(i as u32, dist2);
-            }
-        });
+        each.each(|i| self.offer(i as u32, (p - now[i]).length_squared(), reach));
+    }
+
+    /// Adds shell particle `i`, `dist2` from the point squared, when within two reaches.
+    #[inline(always)]
+    fn offer(&mut self, i: u32, dist2: f32, reach: f32) {
+        if dist2 < 4.0 * reach * reach {
+            self.insert(i, dist2);
+        }
     }
 
     #[inline(always)]
@@ -1452,14 +1454,13 @@ impl ShellCollider {
                 let each = Listed(near);
                 // The end point's neighbours, gathered in the same pass (as `push_out` would,
                 // for the path's end: most paths cross nothing).
-                let (within, limit) = (reach * reach, 4.0 * reach * reach);
                 let (mut nearest, mut any) = (Nearest::default(), false);
                 let gather = nearby.is_some();
                 let crossed = self.first_contact(x3, d, reach, &each, |i, distance| {
-                    if !gather {
-                        any |= distance < within;
-                    } else if distance < limit {
-                        nearest.insert(i as u32, distance);
+                    if gather {
+                        nearest.offer(i as u32, distance, reach);
+                    } else {
+                        any |= distance < reach * reach;
                     }
                 });
                 return match crossed {
