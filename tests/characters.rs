@@ -394,7 +394,7 @@ fn bad_files_give_clear_errors() {
     let err = Asset::open(&corrupt).unwrap_err();
     assert_eq!(err.exit_code(), 2);
     assert!(
-        err.to_string().contains("broken.glb") && err.to_string().contains("assimp"),
+        err.to_string().contains("broken.glb") && err.to_string().contains("not readable glTF"),
         "{err}"
     );
 
@@ -550,4 +550,113 @@ fn the_command_line_reports_bad_characters_with_exit_2() {
         common::stderr(&out)
     );
     assert!(!dir.path().join("x.shell").exists());
+}
+
+/// CesiumMan as committed (the tests that need it never skip).
+fn cesium_man() -> PathBuf {
+    PathBuf::from("characters/CesiumMan/CesiumMan.glb")
+}
+
+/// Writes a GLB of `root` (as `gltf-json` serialises it) with `blob` as its binary chunk.
+fn write_glb(path: &Path, root: &gltf::json::Root, blob: &[u8]) {
+    let mut json = gltf::json::serialize::to_vec(root).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut bin = blob.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let length = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(length);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(length as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    std::fs::write(path, out).unwrap();
+}
+
+/// CesiumMan with its mesh node renamed to the pelvis bone's name and moved before the bone
+/// in depth-first order: a name lookup now finds the mesh node first.
+fn cesium_man_with_a_duplicate_name(dir: &Path) -> PathBuf {
+    let gltf::Gltf { document, blob } = gltf::Gltf::open(cesium_man()).unwrap();
+    let mut root = document.into_json();
+    let (mesh, bone) = (2, 3);
+    assert_eq!(root.nodes[mesh].mesh.map(|m| m.value()), Some(0));
+    let bone_name = root.nodes[bone].name.clone().unwrap();
+    root.nodes[mesh].name = Some(bone_name);
+    // The armature's children: the mesh node first, then the skeleton.
+    let armature = root
+        .nodes
+        .iter()
+        .position(|n| {
+            n.children
+                .as_ref()
+                .is_some_and(|c| c.iter().any(|i| i.value() == mesh))
+        })
+        .unwrap();
+    root.nodes[armature].children = Some(vec![
+        gltf::json::Index::new(mesh as u32),
+        gltf::json::Index::new(bone as u32),
+    ]);
+    let path = dir.join("duplicate_name.glb");
+    write_glb(&path, &root, blob.as_deref().unwrap());
+    path
+}
+
+#[test]
+fn a_mesh_node_named_like_a_bone_binds_by_index() {
+    let dir = common::temp_dir();
+    let renamed = cesium_man_with_a_duplicate_name(dir.path());
+    let frames = 40;
+    let original = clip(
+        &Asset::open(&cesium_man()).unwrap(),
+        &cesium_man(),
+        Some("0"),
+        frames,
+    );
+    // glTF is read by index: the same vertices in every frame, to the bit.
+    let by_index = clip(&Asset::open(&renamed).unwrap(), &renamed, Some("0"), frames);
+    assert_eq!(by_index.frames, original.frames);
+    // Through assimp (by name) the bone wins over the mesh node, with a warning naming it.
+    let asset = Asset::open_with_assimp(&renamed).unwrap();
+    assert!(
+        asset
+            .warnings
+            .iter()
+            .any(|w| w.contains("Skeleton_torso_joint_1")),
+        "{:?}",
+        asset.warnings
+    );
+    let by_name = clip(&asset, &renamed, Some("0"), frames);
+    let worst = by_name
+        .frames
+        .iter()
+        .zip(&original.frames)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| p.distance(*q)))
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "assimp's frames {worst} m from the original");
+    // A walk moves: the check above compares frames that differ from one another.
+    assert!(original.frames[0] != original.frames[20]);
+}
+
+#[test]
+fn clip_names_match_whatever_their_case_when_only_one_does() {
+    let path = Path::new("characters/RobotExpressive/RobotExpressive.glb");
+    let asset = Asset::open(path).unwrap();
+    let exact = asset.clip_index("Running").unwrap();
+    assert_eq!(asset.clip_index("running"), Some(exact));
+    assert_eq!(asset.clip_index("RUNNING"), Some(exact));
+    assert_eq!(asset.clip_index("runnin"), None);
+    let options = CharacterOptions {
+        clip: Some("walk".into()),
+        ..Default::default()
+    };
+    let err = Character::from_asset(&asset, path, &options, 60.0, 2).unwrap_err();
+    assert!(err.to_string().contains("\"Walking\""), "{err}");
 }

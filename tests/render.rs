@@ -105,6 +105,7 @@ fn sheet(flip: bool) -> AnimatedMesh {
         colour: [0.7, 0.2, 0.2, 1.0],
         frames: vec![positions],
         topology: vec![],
+        solid: None,
     }
 }
 
@@ -162,6 +163,7 @@ fn nothing_to_render_is_an_error_not_a_black_image() {
         colour: [1.0; 4],
         frames: vec![vec![]],
         topology: vec![],
+        solid: None,
     };
     let err = Renderer::new(ctx, &[empty], RenderOptions::default())
         .err()

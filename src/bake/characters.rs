@@ -7,7 +7,7 @@ use crate::collide::skin::Skin;
 use crate::collide::ShellCollider;
 use crate::error::{Error, Result};
 use crate::export::gltf::AnimatedMesh;
-use crate::export::sequence::{weld, CHARACTER_COLOUR};
+use crate::export::sequence::{Welding, CHARACTER_COLOUR};
 use crate::report::CharacterReport;
 use crate::scene::Scene;
 use std::path::{Path, PathBuf};
@@ -38,6 +38,7 @@ pub fn load_characters(
         let frames = scene.frames as usize + 1;
         let mut character = Character::load(&path, &options, scene.fps, frames)?;
         let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
+        warnings.extend(std::mem::take(&mut character.warnings));
         warnings.extend(character.size_warning(spec.scale));
         character
             .check_shell(spec.radius)
@@ -101,10 +102,14 @@ pub fn load_characters(
         };
         // Exports and previews show the character when its topology holds over the frames.
         let mesh = if character.same_topology() {
-            let (triangles, frames) = weld(character.triangles_of(0), &character.frames);
+            let welding = Welding::new(&character.frames);
+            let solid = character
+                .visible
+                .is_some()
+                .then(|| welding.faces(character.triangles_of(0)));
             Some(AnimatedMesh {
                 name: name.clone(),
-                triangles,
+                triangles: welding.faces(character.visible_triangles()),
                 uvs: None,
                 colour: [
                     CHARACTER_COLOUR[0],
@@ -112,8 +117,9 @@ pub fn load_characters(
                     CHARACTER_COLOUR[2],
                     1.0,
                 ],
-                frames,
+                frames: welding.frames(&character.frames),
                 topology: Vec::new(),
+                solid,
             })
         } else {
             warnings.push(format!(

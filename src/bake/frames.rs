@@ -308,9 +308,7 @@ fn mesh_penetrations<'m>(
     let free: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
     characters
         .map(|(name, vertices, triangles)| {
-            let normals = crate::export::obj::vertex_normals(triangles, vertices);
-            let p = collide::mesh::penetration(vertices, triangles, &normals, &free);
-            (name, p)
+            (name, collide::mesh::penetration(vertices, triangles, &free))
         })
         .collect()
 }

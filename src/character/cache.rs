@@ -54,7 +54,9 @@ pub fn input_hash(
     }
     // The sampler's own parameters too: a new sampler must not reuse an old cache.
     let sampler = super::shell::SAMPLER;
-    let settings = format!("{options:?}|{radius}|{fps}|{frames}|v{VERSION}|{sampler}");
+    let importer = super::import::IMPORTER;
+    let settings =
+        format!("{options:?}|{radius}|{fps}|{frames}|v{VERSION}|{sampler}|import{importer}");
     Ok(fnv(h, settings.as_bytes()))
 }
 

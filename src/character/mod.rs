@@ -50,6 +50,38 @@ pub struct CharacterOptions {
     pub looping: bool,
     /// Frame rate of a sequence of files (None: one file per scene frame).
     pub sequence_fps: Option<f32>,
+    /// Which of the file's meshes collide (None: all of them).
+    pub meshes: Option<MeshSelection>,
+}
+
+/// Which of a file's meshes collide: they alone get shell particles and are measured for
+/// penetration. Exports and previews still show the whole character. A name matches a mesh by
+/// its mesh, node or material name.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, rename_all = "snake_case")]
+pub enum MeshSelection {
+    /// Only the meshes named.
+    Include(Vec<String>),
+    /// Every mesh but those named.
+    Exclude(Vec<String>),
+}
+
+impl MeshSelection {
+    /// Whether `mesh` collides.
+    pub fn collides(&self, mesh: &import::Mesh) -> bool {
+        let named = |names: &[String]| names.iter().any(|n| import::matches(mesh, n));
+        match self {
+            MeshSelection::Include(names) => named(names),
+            MeshSelection::Exclude(names) => !named(names),
+        }
+    }
+
+    /// The names in the selection.
+    pub fn names(&self) -> &[String] {
+        match self {
+            MeshSelection::Include(n) | MeshSelection::Exclude(n) => n,
+        }
+    }
 }
 
 impl Default for CharacterOptions {
@@ -64,6 +96,7 @@ impl Default for CharacterOptions {
             speed: 1.0,
             looping: false,
             sequence_fps: None,
+            meshes: None,
         }
     }
 }
@@ -129,6 +162,11 @@ pub struct Character {
     pub fps: f32,
     /// Clip names and durations [s] of the file (empty for sequences and static meshes).
     pub clips: Vec<(String, f64)>,
+    /// Every triangle of frame 0 when a mesh selection left some out of `triangles` (the
+    /// exports show them all); None when `triangles` are all of them.
+    pub visible: Option<Vec<[u32; 3]>>,
+    /// What the import found suspicious but could read.
+    pub warnings: Vec<String>,
 }
 
 /// File extensions taken as frames of a sequence folder.
@@ -155,6 +193,8 @@ impl Character {
         let transform = options.transform();
         let mut stored = Vec::new();
         let mut triangles = Vec::new();
+        let mut visible = None;
+        let mut warnings = Vec::new();
         for file in &files {
             let asset = Asset::open(file)?;
             stored.push(
@@ -164,7 +204,15 @@ impl Character {
                     .map(|&v| transform.transform_point3(v))
                     .collect::<Vec<Vec3>>(),
             );
-            triangles.push(asset.triangles());
+            triangles.push(asset.colliding_triangles(options.meshes.as_ref(), file)?);
+            if options.meshes.is_some() && visible.is_none() {
+                visible = Some(asset.triangles());
+            }
+            for w in asset.warnings {
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
+            }
         }
         let source_fps = options.sequence_fps.unwrap_or(fps);
         let same = triangles.windows(2).all(|w| w[0] == w[1]);
@@ -174,6 +222,8 @@ impl Character {
             frames: Vec::new(),
             fps,
             clips: Vec::new(),
+            visible,
+            warnings,
         };
         // Without a source rate, file k is scene frame k: never more frames than files.
         let count = match options.sequence_fps {
@@ -251,9 +301,10 @@ impl Character {
                     .collect()
             })
             .collect();
+        let triangles = asset.colliding_triangles(options.meshes.as_ref(), source)?;
         Ok(Character {
             source: source.to_path_buf(),
-            triangles: vec![asset.triangles()],
+            triangles: vec![triangles],
             frames,
             fps,
             clips: asset
@@ -261,6 +312,8 @@ impl Character {
                 .iter()
                 .map(|c| (c.name.clone(), c.duration))
                 .collect(),
+            visible: options.meshes.as_ref().map(|_| asset.triangles()),
+            warnings: asset.warnings.clone(),
         })
     }
 
@@ -315,6 +368,11 @@ impl Character {
              scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres)",
             self.source.display()
         ))
+    }
+
+    /// Every triangle of frame 0, those a mesh selection left out of the collisions included.
+    pub fn visible_triangles(&self) -> &[[u32; 3]] {
+        self.visible.as_deref().unwrap_or(self.triangles_of(0))
     }
 
     /// Triangles of frame `k`.

@@ -2,19 +2,31 @@
 //! shell of particles that collides with the cloth: the check that the shell kept every particle
 //! out of the body the user sees.
 //!
+//! The mesh is first welded by position ([`Surface::new`]): exported meshes split vertices
+//! wherever normals or UVs change, and a flat-shaded one has three vertices of its own per
+//! triangle, so without welding neighbouring triangles do not know they share an edge. Inside is
+//! then decided at the nearest point of the surface by its angle-weighted pseudonormal (Bærentzen
+//! and Aanæs 2005): the face normal in a face's interior, the sum of the two faces' normals on an
+//! edge, the angle-weighted sum on a vertex. On a closed, welded mesh the sign of (p − q) · n is
+//! exactly inside or outside, in concave places too, whatever the mesh's shading.
+//!
 //! Each point's nearest triangle within [`REACH`] is found through a uniform grid of the
-//! triangles' boxes; the point is inside when it lies behind the surface there, judged by the
-//! vertex normals interpolated at the nearest point (smooth across edges and corners, where a face
-//! normal would misjudge). A point farther than `REACH` from every triangle is counted outside:
-//! cloth deeper than 5 cm in a body is a failure the shell metric reports anyway.
+//! triangles' boxes. A point farther than `REACH` from every triangle of a closed mesh is decided
+//! by ray parity (a ray along +X through a grid of the triangles' Y–Z boxes) and, when inside,
+//! its depth found over all triangles: cloth deep in a body is rare but must not read as outside.
+//! On an open mesh (a hole at the neck, a single-sided plane) parity means nothing, and such a
+//! point counts outside.
 
 use super::Penetration;
-use glam::{IVec3, Vec3};
+use glam::{IVec3, Vec2, Vec3};
 use rayon::prelude::*;
+use std::collections::HashMap;
 
-/// How far from the surface a point is looked at [m].
+/// How far from the surface a point is looked at through the grid [m].
 pub const REACH: f32 = 0.05;
 
+/// Vertices closer than this are one vertex of the welded surface [m].
+pub const WELD: f32 = 1e-6;
 /// The point of triangle `abc` nearest `p`, as barycentric weights (Ericson, Real-Time Collision
 /// Detection, 5.1.5). Attachments to a skin bind with it too.
 pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
@@ -53,96 +65,378 @@ pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     Vec3::new(1.0 - v - w, v, w)
 }
 
-/// How many of `points` lie inside the mesh (`vertices`, `triangles`, unit vertex `normals`
-/// pointing out) and the deepest of them [m].
-pub fn penetration(
-    vertices: &[Vec3],
-    triangles: &[[u32; 3]],
-    normals: &[Vec3],
-    points: &[Vec3],
-) -> Penetration {
-    let cell_of = |p: Vec3| (p / REACH).floor().as_ivec3();
-    // Each triangle in every cell its box, grown by REACH, touches: a point's own cell then
-    // holds every triangle within REACH of it. Only the points' cells are kept (a body's
-    // triangles far from the cloth are never looked at).
-    let mut grid: crate::character::shell::CellMap<Vec<u32>> =
-        points.iter().map(|&p| (cell_of(p), Vec::new())).collect();
-    let (near_lo, near_hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| {
-        (lo.min(p), hi.max(p))
-    });
-    // Each triangle's box: a point farther from it than from the nearest triangle found so far
-    // cannot be nearer that triangle (most candidates are passed over on the box alone).
-    let boxes: Vec<(Vec3, Vec3)> = triangles
-        .iter()
-        .map(|tri| {
-            let [a, b, c] = tri.map(|i| vertices[i as usize]);
-            (a.min(b).min(c), a.max(b).max(c))
-        })
-        .collect();
-    for (t, &(lo, hi)) in boxes.iter().enumerate() {
-        let (lo, hi) = (lo - REACH, hi + REACH);
-        if lo.cmpgt(near_hi).any() || hi.cmplt(near_lo).any() {
-            continue;
+/// How many of `points` lie inside the mesh (`vertices`, `triangles`, wound counter-clockwise
+/// seen from outside) and the deepest of them [m].
+pub fn penetration(vertices: &[Vec3], triangles: &[[u32; 3]], points: &[Vec3]) -> Penetration {
+    Surface::new(vertices, triangles).penetration(points)
+}
+
+/// Feature of a triangle that a nearest point lies on.
+enum Feature {
+    Face,
+    Edge(u32, u32),
+    Vertex(u32),
+}
+
+/// A character's mesh welded by position, with the pseudonormals that decide inside and out.
+pub struct Surface {
+    vertices: Vec<Vec3>,
+    /// Welded triangles, degenerate ones (two corners welded together) left out.
+    triangles: Vec<[u32; 3]>,
+    /// Unit normal of each triangle.
+    faces: Vec<Vec3>,
+    /// Angle-weighted pseudonormal of each vertex.
+    corners: Vec<Vec3>,
+    /// Sum of the unit normals of the triangles on each edge (lower index first).
+    edges: HashMap<(u32, u32), Vec3>,
+    /// Every edge is shared by an even number of triangles (watertight): parity decides the
+    /// points beyond [`REACH`].
+    closed: bool,
+}
+
+impl Surface {
+    /// Welds `vertices` closer than [`WELD`] and computes the pseudonormals.
+    pub fn new(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Surface {
+        let (welded, map) = weld(vertices);
+        let triangles: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|i| map[i as usize]))
+            .filter(|[a, b, c]| a != b && b != c && a != c)
+            .collect();
+        let faces: Vec<Vec3> = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| welded[i as usize]);
+                (b - a).cross(c - a).normalize_or_zero()
+            })
+            .collect();
+        let mut corners = vec![Vec3::ZERO; welded.len()];
+        let mut edges: HashMap<(u32, u32), (Vec3, u32)> = HashMap::new();
+        for (t, n) in triangles.iter().zip(&faces) {
+            for k in 0..3 {
+                let (i, j, l) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                let [p, q, r] = [i, j, l].map(|v| welded[v as usize]);
+                corners[i as usize] += (q - p).angle_between(r - p) * *n;
+                let e = edges.entry((i.min(j), i.max(j))).or_default();
+                e.0 += *n;
+                e.1 += 1;
+            }
         }
-        let (lo, hi) = (cell_of(lo), cell_of(hi));
-        for x in lo.x..=hi.x {
-            for y in lo.y..=hi.y {
-                for z in lo.z..=hi.z {
-                    if let Some(list) = grid.get_mut(&IVec3::new(x, y, z)) {
-                        list.push(t as u32);
+        let closed = !edges.is_empty() && edges.values().all(|e| e.1 % 2 == 0);
+        Surface {
+            vertices: welded,
+            triangles,
+            faces,
+            corners,
+            edges: edges.into_iter().map(|(k, v)| (k, v.0)).collect(),
+            closed,
+        }
+    }
+
+    /// Every edge is shared by an even number of triangles.
+    pub fn closed(&self) -> bool {
+        self.closed
+    }
+
+    /// The welded vertex count.
+    pub fn welded_vertices(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// How many of `points` lie inside and the deepest of them [m].
+    pub fn penetration(&self, points: &[Vec3]) -> Penetration {
+        let near = NearGrid::new(self, points);
+        let columns = self.closed.then(|| Columns::new(self));
+        // A count and a maximum: the same on any number of threads.
+        points
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&p| {
+                let depth = match near.nearest(self, p) {
+                    Some((d2, q, t, w)) => {
+                        let n = self.pseudonormal(t, w);
+                        if (p - q).dot(n) < 0.0 {
+                            // At least a hair deep, so a point on the surface behind it counts.
+                            d2.sqrt().max(f32::MIN_POSITIVE)
+                        } else {
+                            0.0
+                        }
+                    }
+                    None => match &columns {
+                        Some(c) if c.inside(self, p) => self.distance(p),
+                        _ => 0.0,
+                    },
+                };
+                Penetration::of_depth(depth)
+            })
+            .reduce(Penetration::default, Penetration::merge)
+    }
+
+    /// The pseudonormal at barycentric weights `w` of triangle `t` (unnormalised; its sign
+    /// against p − q is what counts).
+    fn pseudonormal(&self, t: usize, w: Vec3) -> Vec3 {
+        let [a, b, c] = self.triangles[t];
+        let feature = match (w.x == 0.0, w.y == 0.0, w.z == 0.0) {
+            (false, true, true) => Feature::Vertex(a),
+            (true, false, true) => Feature::Vertex(b),
+            (true, true, false) => Feature::Vertex(c),
+            (false, false, true) => Feature::Edge(a, b),
+            (true, false, false) => Feature::Edge(b, c),
+            (false, true, false) => Feature::Edge(c, a),
+            _ => Feature::Face,
+        };
+        match feature {
+            Feature::Face => self.faces[t],
+            Feature::Edge(i, j) => self.edges[&(i.min(j), i.max(j))],
+            Feature::Vertex(i) => self.corners[i as usize],
+        }
+    }
+
+    /// Distance from `p` to the nearest triangle, over all of them.
+    fn distance(&self, p: Vec3) -> f32 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                let w = closest_barycentric(p, a, b, c);
+                p.distance_squared(a * w.x + b * w.y + c * w.z)
+            })
+            .fold(f32::INFINITY, f32::min)
+            .sqrt()
+    }
+}
+
+/// Welds positions closer than [`WELD`]: the distinct positions and each vertex's index among
+/// them (the first vertex of a group stands for it).
+fn weld(vertices: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
+    let cell_of = |p: Vec3| (p / WELD).floor().as_ivec3();
+    let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::new();
+    let mut welded: Vec<Vec3> = Vec::new();
+    let mut map = Vec::with_capacity(vertices.len());
+    for &v in vertices {
+        let c = cell_of(v);
+        let mut found = None;
+        'search: for x in -1..=1 {
+            for y in -1..=1 {
+                for z in -1..=1 {
+                    let Some(list) = cells.get(&(c + IVec3::new(x, y, z))) else {
+                        continue;
+                    };
+                    if let Some(&i) = list
+                        .iter()
+                        .find(|&&i| welded[i as usize].distance_squared(v) <= WELD * WELD)
+                    {
+                        found = Some(i);
+                        break 'search;
                     }
                 }
             }
         }
+        let i = found.unwrap_or_else(|| {
+            welded.push(v);
+            let i = welded.len() as u32 - 1;
+            cells.entry(c).or_default().push(i);
+            i
+        });
+        map.push(i);
     }
-    let depth = |p: Vec3| -> f32 {
-        let Some(candidates) = grid.get(&cell_of(p)) else {
-            return 0.0;
-        };
+    (welded, map)
+}
+
+/// The triangles within [`REACH`] of each point's grid cell, for the points asked about.
+struct NearGrid {
+    grid: crate::character::shell::CellMap<Vec<u32>>,
+    boxes: Vec<(Vec3, Vec3)>,
+}
+
+impl NearGrid {
+    fn cell_of(p: Vec3) -> IVec3 {
+        (p / REACH).floor().as_ivec3()
+    }
+
+    /// Each triangle in every cell its box, grown by REACH, touches: a point's own cell then
+    /// holds every triangle within REACH of it. Only the points' cells are kept (a body's
+    /// triangles far from the cloth are never looked at).
+    fn new(surface: &Surface, points: &[Vec3]) -> NearGrid {
+        let mut grid: crate::character::shell::CellMap<Vec<u32>> = points
+            .iter()
+            .map(|&p| (Self::cell_of(p), Vec::new()))
+            .collect();
+        let (near_lo, near_hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+        // Each triangle's box: a point farther from it than from the nearest triangle found so
+        // far cannot be nearer that triangle (most candidates are passed over on the box alone).
+        let boxes: Vec<(Vec3, Vec3)> = surface
+            .triangles
+            .iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|i| surface.vertices[i as usize]);
+                (a.min(b).min(c), a.max(b).max(c))
+            })
+            .collect();
+        for (t, &(lo, hi)) in boxes.iter().enumerate() {
+            let (lo, hi) = (lo - REACH, hi + REACH);
+            if lo.cmpgt(near_hi).any() || hi.cmplt(near_lo).any() {
+                continue;
+            }
+            let (lo, hi) = (Self::cell_of(lo), Self::cell_of(hi));
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        if let Some(list) = grid.get_mut(&IVec3::new(x, y, z)) {
+                            list.push(t as u32);
+                        }
+                    }
+                }
+            }
+        }
+        NearGrid { grid, boxes }
+    }
+
+    /// The nearest point of the surface within REACH of `p`: its squared distance, the point,
+    /// the triangle and the barycentric weights there.
+    fn nearest(&self, surface: &Surface, p: Vec3) -> Option<(f32, Vec3, usize, Vec3)> {
+        let candidates = self.grid.get(&Self::cell_of(p))?;
         let mut best = (REACH * REACH, None);
         for &t in candidates {
-            let (lo, hi) = boxes[t as usize];
+            let (lo, hi) = self.boxes[t as usize];
             let outside = (lo - p).max(p - hi).max(Vec3::ZERO);
             if outside.length_squared() >= best.0 {
                 continue;
             }
-            let [i, j, k] = triangles[t as usize];
-            let [a, b, c] = [i, j, k].map(|v| vertices[v as usize]);
+            let [a, b, c] = surface.triangles[t as usize].map(|v| surface.vertices[v as usize]);
             let w = closest_barycentric(p, a, b, c);
             let q = a * w.x + b * w.y + c * w.z;
             let d2 = p.distance_squared(q);
             if d2 < best.0 {
-                best = (d2, Some((q, w, [i, j, k])));
+                best = (d2, Some((q, t as usize, w)));
             }
         }
-        let Some((q, w, [i, j, k])) = best.1 else {
-            return 0.0;
-        };
-        let n = normals[i as usize] * w.x + normals[j as usize] * w.y + normals[k as usize] * w.z;
-        if (p - q).dot(n) < 0.0 {
-            // At least a hair deep, so a point exactly on the surface behind it still counts.
-            best.0.sqrt().max(f32::MIN_POSITIVE)
-        } else {
-            0.0
+        best.1.map(|(q, t, w)| (best.0, q, t, w))
+    }
+}
+
+/// The triangles of a closed surface bucketed by their boxes in the Y–Z plane, for rays cast
+/// along +X.
+struct Columns {
+    cell: f32,
+    lo: Vec2,
+    size: [usize; 2],
+    buckets: Vec<Vec<u32>>,
+}
+
+/// Columns per side at most (a 64 × 64 grid over the body's Y–Z extent).
+const COLUMNS: usize = 64;
+
+impl Columns {
+    fn new(surface: &Surface) -> Columns {
+        let yz = |v: Vec3| Vec2::new(v.y, v.z);
+        let (lo, hi) = surface
+            .vertices
+            .iter()
+            .fold((Vec2::MAX, Vec2::MIN), |(lo, hi), &v| {
+                (lo.min(yz(v)), hi.max(yz(v)))
+            });
+        let cell = ((hi - lo).max_element() / COLUMNS as f32).max(1e-4);
+        let size = [
+            ((hi.x - lo.x) / cell) as usize + 1,
+            ((hi.y - lo.y) / cell) as usize + 1,
+        ];
+        let mut buckets = vec![Vec::new(); size[0] * size[1]];
+        for (t, tri) in surface.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|i| yz(surface.vertices[i as usize]));
+            let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+            let i0 = ((tlo - lo) / cell).as_uvec2();
+            let i1 = ((thi - lo) / cell).as_uvec2();
+            for i in i0.x..=i1.x.min(size[0] as u32 - 1) {
+                for j in i0.y..=i1.y.min(size[1] as u32 - 1) {
+                    buckets[i as usize * size[1] + j as usize].push(t as u32);
+                }
+            }
         }
+        Columns {
+            cell,
+            lo,
+            size,
+            buckets,
+        }
+    }
+
+    /// Whether `p` is inside, by the parity of a +X ray's crossings. A ray that grazes an edge
+    /// or a vertex is cast again from a point a few micrometres aside.
+    fn inside(&self, surface: &Surface, p: Vec3) -> bool {
+        for nudge in [
+            Vec2::ZERO,
+            Vec2::new(3.1e-6, 1.7e-6),
+            Vec2::new(-2.3e-6, 4.1e-6),
+        ] {
+            if let Some(odd) = self.parity(surface, p + Vec3::new(0.0, nudge.x, nudge.y)) {
+                return odd;
+            }
+        }
+        false
+    }
+
+    /// The parity of the crossings, or None when the ray grazes an edge or a vertex.
+    fn parity(&self, surface: &Surface, p: Vec3) -> Option<bool> {
+        let at = (Vec2::new(p.y, p.z) - self.lo) / self.cell;
+        if at.x < 0.0 || at.y < 0.0 {
+            return Some(false);
+        }
+        let (i, j) = (at.x as usize, at.y as usize);
+        if i >= self.size[0] || j >= self.size[1] {
+            return Some(false);
+        }
+        let mut odd = false;
+        for &t in &self.buckets[i * self.size[1] + j] {
+            let [a, b, c] = surface.triangles[t as usize].map(|v| surface.vertices[v as usize]);
+            match crossing(p, a, b, c)? {
+                true => odd = !odd,
+                false => {}
+            }
+        }
+        Some(odd)
+    }
+}
+
+/// Whether the ray from `p` along +X crosses triangle `abc` (None when it passes within a
+/// rounding error of an edge or a vertex, where the answer is not to be trusted).
+fn crossing(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<bool> {
+    // Edge functions in the Y–Z plane, in f64.
+    let e = |u: Vec3, v: Vec3| {
+        (v.y as f64 - u.y as f64) * (p.z as f64 - u.z as f64)
+            - (v.z as f64 - u.z as f64) * (p.y as f64 - u.y as f64)
     };
-    // A count and a maximum: the same on any number of threads.
-    points
-        .par_iter()
-        .with_min_len(1024)
-        .map(|&p| Penetration::of_depth(depth(p)))
-        .reduce(Penetration::default, Penetration::merge)
+    let (wa, wb, wc) = (e(b, c), e(c, a), e(a, b));
+    let area = wa + wb + wc;
+    if area.abs() < 1e-30 {
+        return Some(false); // edge-on to the ray: crossed through its neighbours
+    }
+    let eps = 1e-9 * area.abs();
+    if wa.abs() < eps || wb.abs() < eps || wc.abs() < eps {
+        if (wa >= -eps && wb >= -eps && wc >= -eps) || (wa <= eps && wb <= eps && wc <= eps) {
+            return None;
+        }
+        return Some(false);
+    }
+    let inside = (wa > 0.0 && wb > 0.0 && wc > 0.0) || (wa < 0.0 && wb < 0.0 && wc < 0.0);
+    if !inside {
+        return Some(false);
+    }
+    let x = (wa * a.x as f64 + wb * b.x as f64 + wc * c.x as f64) / area;
+    Some(x > p.x as f64)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A closed unit cube centred at the origin, outward normals.
-    fn cube() -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<Vec3>) {
+    /// A closed box from `lo` to `hi` as 12 triangles wound outward (8 shared vertices).
+    fn cuboid(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
         let v: Vec<Vec3> = (0..8)
             .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
-            .map(|p| p - Vec3::splat(0.5))
+            .map(|f| lo + f * (hi - lo))
             .collect();
         let faces = [
             [0, 2, 3, 1],
@@ -152,33 +446,215 @@ mod tests {
             [0, 4, 6, 2],
             [1, 3, 7, 5],
         ];
-        let t: Vec<[u32; 3]> = faces
+        let t = faces
             .iter()
             .flat_map(|[a, b, c, d]| [[*a, *b, *c], [*a, *c, *d]])
             .collect();
-        let n = crate::export::obj::vertex_normals(&t, &v);
-        (v, t, n)
+        (v, t)
+    }
+
+    /// An L-shaped prism (concave: a reflex edge along Z at (0.1, 0.1)), smooth-shaded: one
+    /// vertex per corner, shared by every triangle there. The L is the square 0..0.2 in X and
+    /// Y less the quarter 0.1..0.2 × 0.1..0.2, 0.1 m deep in Z.
+    fn l_prism() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let outline = [
+            [0.0, 0.0],
+            [0.2, 0.0],
+            [0.2, 0.1],
+            [0.1, 0.1],
+            [0.1, 0.2],
+            [0.0, 0.2],
+        ];
+        let mut v: Vec<Vec3> = outline.iter().map(|p| Vec3::new(p[0], p[1], 0.0)).collect();
+        v.extend(outline.iter().map(|p| Vec3::new(p[0], p[1], 0.1)));
+        // Caps: the L as four triangles fanned from corner 3 (the reflex one), which sees
+        // every other corner.
+        let mut t = Vec::new();
+        for k in [4u32, 5, 0, 1] {
+            let next = (k + 1) % 6;
+            t.push([3, next, k]); // bottom (z = 0), facing −Z
+            t.push([9, k + 6, next + 6]); // top (z = 0.1), facing +Z
+        }
+        // Sides: the outline runs counter-clockwise seen from +Z, so (k, k+1, top) faces out.
+        for k in 0..6u32 {
+            let n = (k + 1) % 6;
+            t.push([k, n, n + 6]);
+            t.push([k, n + 6, k + 6]);
+        }
+        (v, t)
+    }
+
+    /// The same triangles with three vertices of their own each (flat-shaded as exported).
+    fn flat(v: &[Vec3], t: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let vertices = t
+            .iter()
+            .flat_map(|tri| tri.map(|i| v[i as usize]))
+            .collect();
+        let triangles = (0..t.len() as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        (vertices, triangles)
+    }
+
+    /// Independent reference: inside by the parity of a ray's crossings (Möller–Trumbore, in
+    /// f64, along a direction no edge of the test meshes lies in), over every triangle.
+    fn parity_inside(v: &[Vec3], t: &[[u32; 3]], p: Vec3) -> bool {
+        let d = glam::DVec3::new(0.5727, 0.6163, 0.5402).normalize();
+        let o = p.as_dvec3();
+        let mut hits = 0;
+        for tri in t {
+            let [a, b, c] = tri.map(|i| v[i as usize].as_dvec3());
+            let (e1, e2) = (b - a, c - a);
+            let h = d.cross(e2);
+            let det = e1.dot(h);
+            if det.abs() < 1e-15 {
+                continue;
+            }
+            let s = o - a;
+            let u = s.dot(h) / det;
+            let q = s.cross(e1);
+            let w = d.dot(q) / det;
+            if u < 0.0 || w < 0.0 || u + w > 1.0 {
+                continue;
+            }
+            if e2.dot(q) / det > 0.0 {
+                hits += 1;
+            }
+        }
+        hits % 2 == 1
+    }
+
+    /// Points on a lattice through the L's box and a little around it, none on a face.
+    fn probe_points() -> Vec<Vec3> {
+        let mut points = Vec::new();
+        for i in 0..27 {
+            for j in 0..27 {
+                for k in 0..15 {
+                    points.push(Vec3::new(
+                        -0.03 + i as f32 * 0.01 + 0.0013,
+                        -0.03 + j as f32 * 0.01 + 0.0021,
+                        -0.03 + k as f32 * 0.011 + 0.0017,
+                    ));
+                }
+            }
+        }
+        points
     }
 
     #[test]
-    fn points_just_inside_a_cube_are_counted_with_their_depth() {
-        let (v, t, n) = cube();
-        // Inside by 1 cm and 3 cm under the top face, outside by 2 cm, and at the centre (0.5 m
-        // deep: past REACH, so counted outside as documented).
+    fn flat_and_smooth_copies_of_a_concave_mesh_agree_with_ray_parity() {
+        let (v, t) = l_prism();
+        let (fv, ft) = flat(&v, &t);
+        let smooth = Surface::new(&v, &t);
+        let flat = Surface::new(&fv, &ft);
+        assert!(smooth.closed() && flat.closed());
+        assert_eq!(
+            flat.welded_vertices(),
+            12,
+            "the flat copy welds back to 12 corners"
+        );
+        let mut inside = 0;
+        for p in probe_points() {
+            let expected = parity_inside(&v, &t, p);
+            for (name, s) in [("smooth", &smooth), ("flat", &flat)] {
+                let got = s.penetration(&[p]).inside == 1;
+                assert_eq!(
+                    got, expected,
+                    "{name} copy at {p}: inside {got}, parity {expected}"
+                );
+            }
+            inside += expected as usize;
+        }
+        // The L's volume is 3/4 of 0.2 × 0.2 × 0.1 m: about 3/4 × 20 × 20 × 9 lattice points.
+        assert!((2600..2800).contains(&inside), "{inside} points inside");
+    }
+
+    #[test]
+    fn points_by_a_concave_edge_and_corner_are_judged_right() {
+        let (v, t) = l_prism();
+        let (fv, ft) = flat(&v, &t);
+        // The reflex edge runs along Z at (0.1, 0.1); the notch (x, y > 0.1) is outside.
+        let cases = [
+            (
+                Vec3::new(0.102, 0.102, 0.05),
+                false,
+                "in the notch by the reflex edge",
+            ),
+            (
+                Vec3::new(0.098, 0.098, 0.05),
+                true,
+                "in the body by the reflex edge",
+            ),
+            (
+                Vec3::new(0.101, 0.13, 0.05),
+                false,
+                "beside the notch's wall, outside",
+            ),
+            (
+                Vec3::new(0.099, 0.13, 0.05),
+                true,
+                "behind the notch's wall, inside",
+            ),
+            (
+                Vec3::new(0.102, 0.102, 0.1005),
+                false,
+                "above the reflex edge's top corner",
+            ),
+            (
+                Vec3::new(0.098, 0.098, 0.0995),
+                true,
+                "under the reflex edge's top corner",
+            ),
+            (Vec3::new(0.201, 0.05, 0.05), false, "outside a convex side"),
+            (
+                Vec3::new(0.201, 0.101, 0.101),
+                false,
+                "past a convex corner",
+            ),
+        ];
+        for (p, expected, what) in cases {
+            assert_eq!(parity_inside(&v, &t, p), expected, "reference: {what}");
+            for (name, (vv, tt)) in [("smooth", (&v, &t)), ("flat", (&fv, &ft))] {
+                let got = penetration(vv, tt, &[p]);
+                assert_eq!(got.inside == 1, expected, "{name}: {what} at {p}");
+            }
+        }
+    }
+
+    #[test]
+    fn depth_is_the_distance_to_the_surface_near_and_deep() {
+        let (v, t) = cuboid(Vec3::splat(-0.5), Vec3::splat(0.5));
+        let (fv, ft) = flat(&v, &t);
+        // 1 cm and 3 cm under the top face, 2 cm over it, and the centre (0.5 m deep: past
+        // REACH, decided by parity and measured over all triangles).
         let points = [
             Vec3::new(0.1, 0.49, 0.0),
             Vec3::new(-0.2, 0.47, 0.1),
             Vec3::new(0.0, 0.52, 0.0),
-            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, 0.0),
         ];
-        let p = penetration(&v, &t, &n, &points);
-        assert_eq!(p.inside, 2);
-        assert!((p.deepest - 0.03).abs() < 1e-5, "{}", p.deepest);
-        // Near an edge and a corner, inside and out, the interpolated normal decides right.
-        let edge_in = Vec3::new(0.49, 0.49, 0.0);
-        let corner_out = Vec3::new(0.51, 0.51, 0.51);
-        let q = penetration(&v, &t, &n, &[edge_in, corner_out]);
-        assert_eq!(q.inside, 1);
+        for (vv, tt) in [(&v, &t), (&fv, &ft)] {
+            let p = penetration(vv, tt, &points);
+            assert_eq!(p.inside, 3);
+            assert!((p.deepest - 0.5).abs() < 1e-5, "{}", p.deepest);
+            let q = penetration(vv, tt, &points[..3]);
+            assert!((q.deepest - 0.03).abs() < 1e-5, "{}", q.deepest);
+        }
+    }
+
+    #[test]
+    fn an_open_mesh_counts_only_what_lies_behind_it_within_reach() {
+        // The cube without its top face: a deep point cannot be decided and counts outside;
+        // one just behind a remaining face counts inside.
+        let (v, t) = cuboid(Vec3::splat(-0.5), Vec3::splat(0.5));
+        let open: Vec<[u32; 3]> = t
+            .into_iter()
+            .filter(|tri| !tri.iter().all(|&i| v[i as usize].y > 0.0))
+            .collect();
+        let s = Surface::new(&v, &open);
+        assert!(!s.closed());
+        assert_eq!(s.penetration(&[Vec3::ZERO]).inside, 0);
+        assert_eq!(s.penetration(&[Vec3::new(0.0, -0.49, 0.0)]).inside, 1);
     }
 
     #[test]

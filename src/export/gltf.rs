@@ -42,6 +42,9 @@ pub struct AnimatedMesh {
     /// in order; `triangles` holds the last. Empty: `triangles` throughout. glTF keeps one
     /// topology, the last; previews and OBJ frames follow the changes.
     pub topology: Vec<(usize, Vec<[u32; 3]>)>,
+    /// A character's triangles that collide, when a mesh selection left some out (the mesh
+    /// penetration metric measures these); None: all of `triangles`.
+    pub solid: Option<Vec<[u32; 3]>>,
 }
 
 impl AnimatedMesh {
@@ -514,6 +517,7 @@ pub fn read(path: &Path) -> Result<(Vec<AnimatedMesh>, f32)> {
             colour,
             frames,
             topology: Vec::new(),
+            solid: None,
         });
     }
     let mut fps = 0.0;

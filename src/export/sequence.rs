@@ -81,6 +81,7 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<ColliderMesh> {
                 ],
                 frames: vec![positions],
                 topology: Vec::new(),
+                solid: None,
             };
             Some(ColliderMesh { mesh, track })
         })
@@ -282,14 +283,16 @@ impl BakeMeshes {
         }
     }
 
-    /// Every character shown, at baked frame `index`: name, vertices, faces.
+    /// Every character shown, at baked frame `index`: name, vertices, and the faces that
+    /// collide (all of them without a mesh selection).
     pub fn characters_at(
         &self,
         index: usize,
     ) -> impl Iterator<Item = (&str, &[Vec3], &[[u32; 3]])> {
         self.characters.iter().map(move |c| {
             let frame = &c.frames[if c.frames.len() == 1 { 0 } else { index + 1 }];
-            (c.name.as_str(), &frame[..], &c.triangles[..])
+            let solid = c.solid.as_deref().unwrap_or(&c.triangles);
+            (c.name.as_str(), &frame[..], solid)
         })
     }
 
@@ -340,37 +343,67 @@ impl BakeMeshes {
 /// copy would be stored in every frame of the exports. A vertex that only starts at the same
 /// place (a seam a skin pulls apart) stays apart.
 pub fn weld(triangles: &[[u32; 3]], frames: &[Vec<Vec3>]) -> (Vec<[u32; 3]>, Vec<Vec<Vec3>>) {
-    let Some(first) = frames.first() else {
-        return (triangles.to_vec(), Vec::new());
-    };
-    let same = |a: usize, b: usize| frames.iter().all(|f| f[a] == f[b]);
-    let mut by_position: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
-    let mut kept: Vec<usize> = Vec::new();
-    let mut map = Vec::with_capacity(first.len());
-    for (v, p) in first.iter().enumerate() {
-        let candidates = by_position
-            .entry(p.to_array().map(f32::to_bits))
-            .or_default();
-        let k = match candidates.iter().find(|&&k| same(kept[k as usize], v)) {
-            Some(&k) => k,
-            None => {
-                kept.push(v);
-                candidates.push(kept.len() as u32 - 1);
-                kept.len() as u32 - 1
-            }
+    let welding = Welding::new(frames);
+    (welding.faces(triangles), welding.frames(frames))
+}
+
+/// Which vertices [`weld`] merges: those at the same position in every frame.
+pub struct Welding {
+    /// Per vertex, its welded index.
+    map: Vec<u32>,
+    /// Per welded vertex, the vertex that stands for it.
+    kept: Vec<usize>,
+}
+
+impl Welding {
+    /// Finds the vertices of `frames` that share a position in every frame.
+    pub fn new(frames: &[Vec<Vec3>]) -> Welding {
+        let Some(first) = frames.first() else {
+            return Welding {
+                map: Vec::new(),
+                kept: Vec::new(),
+            };
         };
-        map.push(k);
+        let same = |a: usize, b: usize| frames.iter().all(|f| f[a] == f[b]);
+        let mut by_position: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
+        let mut kept: Vec<usize> = Vec::new();
+        let mut map = Vec::with_capacity(first.len());
+        for (v, p) in first.iter().enumerate() {
+            let candidates = by_position
+                .entry(p.to_array().map(f32::to_bits))
+                .or_default();
+            let k = match candidates.iter().find(|&&k| same(kept[k as usize], v)) {
+                Some(&k) => k,
+                None => {
+                    kept.push(v);
+                    candidates.push(kept.len() as u32 - 1);
+                    kept.len() as u32 - 1
+                }
+            };
+            map.push(k);
+        }
+        Welding { map, kept }
     }
-    let faces = triangles
-        .iter()
-        .map(|t| t.map(|i| map[i as usize]))
-        .filter(|[a, b, c]| a != b && b != c && a != c)
-        .collect();
-    let frames = frames
-        .iter()
-        .map(|f| kept.iter().map(|&v| f[v]).collect())
-        .collect();
-    (faces, frames)
+
+    /// `triangles` over the welded vertices, those that collapsed left out.
+    pub fn faces(&self, triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        if self.map.is_empty() {
+            return triangles.to_vec();
+        }
+        triangles
+            .iter()
+            .map(|t| t.map(|i| self.map[i as usize]))
+            .filter(|[a, b, c]| a != b && b != c && a != c)
+            .collect()
+    }
+
+    /// The welded vertices of each frame.
+    pub fn frames(&self, frames: &[Vec<Vec3>]) -> Vec<Vec<Vec3>> {
+        frames
+            .iter()
+            .map(|f| self.kept.iter().map(|&v| f[v]).collect())
+            .collect()
+    }
 }
 
 #[cfg(test)]

@@ -199,6 +199,7 @@ impl Renderer {
                 c + Vec3::new(-h, 0.0, h),
             ]],
             topology: Vec::new(),
+            solid: None,
         };
         let floor = mesh_buffers(&floor_mesh);
         // Draw slots: one per mesh, then the floor, then the wireframe colour (the bind groups
@@ -480,6 +481,7 @@ fn at_frame(
         colour,
         frames: vec![positions],
         topology: Vec::new(),
+        solid: None,
     }
 }
 

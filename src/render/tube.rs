@@ -26,6 +26,7 @@ pub fn ropes_as_tubes(meshes: &[AnimatedMesh], radius: f32) -> Vec<AnimatedMesh>
                 frames: m.frames.iter().map(|f| tube_vertices(f, radius)).collect(),
                 uvs: None,
                 topology: Vec::new(),
+                solid: None,
                 ..m.clone()
             }
         })
@@ -78,6 +79,7 @@ mod tests {
                 .map(|i| Vec3::new(i as f32 * 0.1, 1.0, 0.0))
                 .collect()],
             topology: Vec::new(),
+            solid: None,
         };
         let tube = &ropes_as_tubes(&[rope], 0.01)[0];
         assert_eq!(tube.frames[0].len(), 5 * SIDES as usize);

@@ -450,6 +450,9 @@ pub struct CharacterSpec {
     pub radius: f32,
     /// Coulomb friction against the garments. Default 0.5.
     pub friction: f32,
+    /// Which of the file's meshes collide: `{"include": [names]}` or `{"exclude": [names]}`,
+    /// each a mesh, node or material name. Default all. Exports show the whole character.
+    pub meshes: Option<crate::character::MeshSelection>,
 }
 
 impl Default for CharacterSpec {
@@ -470,6 +473,7 @@ impl Default for CharacterSpec {
             sequence_fps: o.sequence_fps,
             radius: 0.01,
             friction: 0.5,
+            meshes: o.meshes,
         }
     }
 }
@@ -487,6 +491,7 @@ impl CharacterSpec {
             speed: self.speed,
             looping: self.looping,
             sequence_fps: self.sequence_fps,
+            meshes: self.meshes.clone(),
         }
     }
 }
