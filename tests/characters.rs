@@ -1,4 +1,4 @@
-//! Characters imported through assimp: the shared assets against their MANIFEST
+//! Characters imported (glTF by index, the rest through assimp): the shared assets against their MANIFEST
 //! (`shared/assets/MANIFEST.md`, boxes made by two independent evaluators), skinning against an
 //! analytic two-bone rig written here, shells against their spacing and coverage contract, and
 //! bad files against clear errors.
@@ -659,4 +659,133 @@ fn clip_names_match_whatever_their_case_when_only_one_does() {
     };
     let err = Character::from_asset(&asset, path, &options, 60.0, 2).unwrap_err();
     assert!(err.to_string().contains("\"Walking\""), "{err}");
+}
+
+#[test]
+fn meshes_are_chosen_by_mesh_node_or_material_name() {
+    use drape::character::MeshSelection;
+    let path = Path::new("characters/RobotExpressive/RobotExpressive.glb");
+    let asset = Asset::open(path).unwrap();
+    let load = |meshes: Option<MeshSelection>| {
+        let options = CharacterOptions {
+            meshes,
+            ..Default::default()
+        };
+        Character::from_asset(&asset, path, &options, 60.0, 1)
+    };
+    let all = load(None).unwrap();
+    let count = |pick: &dyn Fn(&drape::character::import::Mesh) -> bool| -> usize {
+        asset
+            .mesh_triangle_ranges()
+            .iter()
+            .filter(|(m, _)| pick(m))
+            .map(|(_, r)| r.len())
+            .sum()
+    };
+    // "Head" is a mesh (three primitives) and a node name.
+    let no_head = load(Some(MeshSelection::Exclude(vec!["Head".into()]))).unwrap();
+    assert_eq!(
+        no_head.triangles_of(0).len(),
+        all.triangles_of(0).len() - count(&|m| m.name == "Head")
+    );
+    assert_eq!(
+        no_head.visible_triangles(),
+        all.triangles_of(0),
+        "exports show it all"
+    );
+    // A material name picks every primitive made of it.
+    let grey = load(Some(MeshSelection::Include(vec!["Grey".into()]))).unwrap();
+    assert_eq!(grey.triangles_of(0).len(), count(&|m| m.material == "Grey"));
+    assert!(grey.triangles_of(0).len() < all.triangles_of(0).len());
+    // The kept triangles are the file's own, not renumbered.
+    assert!(grey
+        .triangles_of(0)
+        .iter()
+        .all(|t| all.triangles_of(0).contains(t)));
+    // A name that matches nothing is refused, naming the field and listing the meshes.
+    let err = load(Some(MeshSelection::Exclude(vec!["Hair".into()]))).unwrap_err();
+    assert_eq!(err.exit_code(), 2);
+    let text = err.to_string();
+    assert!(
+        text.contains("meshes") && text.contains("\"Hair\"") && text.contains("\"Torso\""),
+        "{text}"
+    );
+}
+
+/// Independent reference: inside by the parity of a ray's crossings over every triangle (f64
+/// Möller–Trumbore along a fixed oblique direction).
+fn parity_inside(v: &[Vec3], t: &[[u32; 3]], p: Vec3) -> bool {
+    let d = glam::DVec3::new(0.5727, 0.6163, 0.5402).normalize();
+    let o = p.as_dvec3();
+    let mut hits = 0;
+    for tri in t {
+        let [a, b, c] = tri.map(|i| v[i as usize].as_dvec3());
+        let (e1, e2) = (b - a, c - a);
+        let h = d.cross(e2);
+        let det = e1.dot(h);
+        if det.abs() < 1e-15 {
+            continue;
+        }
+        let s = o - a;
+        let u = s.dot(h) / det;
+        let q = s.cross(e1);
+        let w = d.dot(q) / det;
+        if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && e2.dot(q) / det > 0.0 {
+            hits += 1;
+        }
+    }
+    hits % 2 == 1
+}
+
+#[test]
+fn a_flat_shaded_character_is_measured_as_its_smooth_original() {
+    use drape::collide::mesh::{penetration, Surface};
+    // The bind pose: a walk's frames fold the mesh into itself (hands into thighs), where
+    // neither parity nor a nearest-surface test means "inside".
+    let rest = clip(&Asset::open(&cesium_man()).unwrap(), &cesium_man(), None, 1);
+    let (v, t) = (rest.frame(0), rest.triangles_of(0));
+    // The same frame flat-shaded: three vertices of its own per triangle.
+    let fv: Vec<Vec3> = t
+        .iter()
+        .flat_map(|tri| tri.map(|i| v[i as usize]))
+        .collect();
+    let ft: Vec<[u32; 3]> = (0..t.len() as u32)
+        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+        .collect();
+    // Probes in and out along each 7th triangle's normal, 2 mm to 3 cm from its centroid.
+    let mut points = Vec::new();
+    for tri in t.iter().step_by(7) {
+        let [a, b, c] = tri.map(|i| v[i as usize]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        let centre = (a + b + c) / 3.0;
+        for d in [0.002, 0.006, 0.015, 0.03] {
+            points.push(centre + n * d);
+            points.push(centre - n * d);
+        }
+    }
+    let smooth = penetration(v, t, &points);
+    let flat = penetration(&fv, &ft, &points);
+    assert_eq!(
+        flat.inside, smooth.inside,
+        "flat-shaded and smooth copies count alike"
+    );
+    assert!((flat.deepest - smooth.deepest).abs() < 1e-6);
+    // Against ray parity, point by point, where the welded mesh is closed.
+    let surface = Surface::new(v, t);
+    eprintln!(
+        "CesiumMan bind pose: {} of {} probes inside, deepest {:.4} m; welded mesh closed: {}",
+        smooth.inside,
+        points.len(),
+        smooth.deepest,
+        surface.closed()
+    );
+    if surface.closed() {
+        let disagree = points
+            .iter()
+            .filter(|&&p| (surface.penetration(&[p]).inside == 1) != parity_inside(v, t, p))
+            .count();
+        assert_eq!(disagree, 0, "probes judged otherwise than by ray parity");
+    }
+    assert!(surface.closed(), "CesiumMan welds into a closed mesh");
+    assert!(smooth.inside > points.len() / 4 && smooth.inside < 3 * points.len() / 4);
 }

@@ -99,6 +99,7 @@ pub fn load_characters(
             shell_particles: positions.first().map_or(0, Vec::len),
             shell_radius: spec.radius,
             shell_cache: cache,
+            height_m: character.height(),
         };
         // Exports and previews show the character when its topology holds over the frames.
         let mesh = if character.same_topology() {

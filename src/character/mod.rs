@@ -167,7 +167,12 @@ pub struct Character {
     pub visible: Option<Vec<[u32; 3]>>,
     /// What the import found suspicious but could read.
     pub warnings: Vec<String>,
+    /// A skinned body (a file with bones), as opposed to a prop or a sequence of frames.
+    pub skinned: bool,
 }
+
+/// Heights [m] of a skinned body taken without a warning.
+pub const BODY_HEIGHTS: std::ops::RangeInclusive<f32> = 0.2..=2.5;
 
 /// File extensions taken as frames of a sequence folder.
 const MESH_EXTENSIONS: [&str; 9] = [
@@ -224,6 +229,7 @@ impl Character {
             clips: Vec::new(),
             visible,
             warnings,
+            skinned: false,
         };
         // Without a source rate, file k is scene frame k: never more frames than files.
         let count = match options.sequence_fps {
@@ -314,6 +320,7 @@ impl Character {
                 .collect(),
             visible: options.meshes.as_ref().map(|_| asset.triangles()),
             warnings: asset.warnings.clone(),
+            skinned: asset.meshes.iter().any(|m| !m.bones.is_empty()),
         })
     }
 
@@ -352,19 +359,40 @@ impl Character {
         Shell::check_size(area, radius, self.frames.len())
     }
 
-    /// A warning when the character is implausibly large or small for a body in metres (over
-    /// 10 m or under 5 cm), with the `scale` that makes it 1.75 m tall.
+    /// Height [m] of frame 0 (its extent along Y, drape's up axis).
+    pub fn height(&self) -> f32 {
+        let (lo, hi) = self.bounds(0);
+        hi.y - lo.y
+    }
+
+    /// A warning when the character is implausibly large or small for what it is in metres: a
+    /// skinned body outside [`BODY_HEIGHTS`], anything else (props, frame sequences) larger
+    /// than 10 m or smaller than 5 cm; with the `scale` that makes it 1.75 m tall.
     pub fn size_warning(&self, scale: f32) -> Option<String> {
         let (lo, hi) = self.bounds(0);
-        let size = (hi - lo).max_element();
-        if !size.is_finite() || (0.05..=10.0).contains(&size) {
+        let size = if self.skinned {
+            hi.y - lo.y
+        } else {
+            (hi - lo).max_element()
+        };
+        let plausible = if self.skinned {
+            BODY_HEIGHTS
+        } else {
+            0.05..=10.0
+        };
+        if !size.is_finite() || size <= 0.0 || plausible.contains(&size) {
             return None;
         }
         let suggested = scale * 1.75 / size;
         // Three significant digits, without an exponent for everyday values.
         let digits = (2 - suggested.log10().floor() as i32).clamp(0, 12) as usize;
+        let what = if self.skinned {
+            "a body taller than 2.5 m or shorter than 0.2 m is unusual"
+        } else {
+            "is it in other units than metres?"
+        };
         Some(format!(
-            "{} is {size:.3} m tall at scale {scale}: is it in other units than metres? \
+            "{} is {size:.3} m tall at scale {scale}: {what}; \
              scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres)",
             self.source.display()
         ))

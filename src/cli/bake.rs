@@ -50,6 +50,12 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
         r.particles,
         r.ms_per_frame.median,
     );
+    for c in &r.characters {
+        println!(
+            "character {}: {:.2} m tall, {} shell particles of radius {} m ({})",
+            c.name, c.height_m, c.shell_particles, c.shell_radius, c.shell_cache
+        );
+    }
     for e in &r.exports {
         println!(
             "wrote {}: {} files, {:.1} MB in {:.0} ms",

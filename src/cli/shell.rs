@@ -145,12 +145,9 @@ pub fn load(
     let probe = Character::load(path, options, fps, 1)?;
     let count = frames.unwrap_or_else(|| match (&options.clip, probe.clips.is_empty()) {
         (Some(name), false) => {
-            let duration = probe
-                .clips
-                .iter()
-                .enumerate()
-                .find(|(i, c)| &c.0 == name || i.to_string() == *name)
-                .map_or(0.0, |(_, c)| c.1);
+            let names = probe.clips.iter().map(|c| c.0.as_str());
+            let duration =
+                drape::character::import::find_clip(names, name).map_or(0.0, |i| probe.clips[i].1);
             ((duration / options.speed as f64) * fps as f64).ceil() as usize + 1
         }
         _ => {
@@ -239,6 +236,16 @@ pub fn inspect(
         };
         println!("  clip {label}: {duration:.3} s");
     }
+    println!(
+        "  height: {:.3} m at scale {} (frame 1)",
+        character.height(),
+        options.scale
+    );
+    if path.is_file() && !path.to_string_lossy().contains('%') {
+        let asset = drape::character::Asset::open(path)?;
+        inspect_meshes(&asset, &character, options, radius);
+        inspect_poses(&asset, &character, options);
+    }
     let clip = options.clip.as_deref().unwrap_or("rest pose");
     println!(
         "  {} frames at {fps} fps ({clip}), {} vertices, {} triangles, same topology: {}",
@@ -269,6 +276,103 @@ pub fn inspect(
         positions as f64 / 1048576.0
     );
     Ok(0)
+}
+
+/// The file's meshes: names, counts, whether each collides, and the shell particles each
+/// would carry on the first frame.
+fn inspect_meshes(
+    asset: &drape::character::Asset,
+    character: &Character,
+    options: &CharacterOptions,
+    radius: f32,
+) {
+    // The shell as it would be sampled on the first frame, every mesh included.
+    let shell = drape::character::Shell::sample(character.frame(0), &asset.triangles(), radius);
+    let ranges = asset.mesh_triangle_ranges();
+    println!("  meshes ({}):", ranges.len());
+    for (mesh, range) in ranges {
+        let particles = shell
+            .triangle
+            .iter()
+            .filter(|&&t| range.contains(&(t as usize)))
+            .count();
+        let collides = options.meshes.as_ref().is_none_or(|s| s.collides(mesh));
+        println!(
+            "    {:?} (node {:?}, material {:?}): {} vertices, {} triangles, {}{}",
+            mesh.name,
+            mesh.node,
+            mesh.material,
+            mesh.vertices.len(),
+            mesh.triangles.len(),
+            if mesh.bones.is_empty() {
+                "rigid".to_string()
+            } else {
+                format!("skinned to {} bones", mesh.bones.len())
+            },
+            if collides {
+                format!(", {particles} shell particles")
+            } else {
+                ", left out of the collisions (characters[].meshes)".to_string()
+            }
+        );
+    }
+}
+
+/// The bind pose, the default node pose and the first frame side by side, with a word when
+/// they differ.
+fn inspect_poses(
+    asset: &drape::character::Asset,
+    character: &Character,
+    options: &CharacterOptions,
+) {
+    let transform = options.transform();
+    let placed = |v: Vec<glam::Vec3>| -> Vec<glam::Vec3> {
+        v.iter().map(|&p| transform.transform_point3(p)).collect()
+    };
+    let bind = placed(asset.bind_pose());
+    let rest = placed(asset.pose(None, 0.0));
+    let first = character.frame(0);
+    let bounds = |v: &[glam::Vec3]| {
+        v.iter().fold(
+            (
+                glam::Vec3::splat(f32::INFINITY),
+                glam::Vec3::splat(f32::NEG_INFINITY),
+            ),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+    };
+    let apart = |a: &[glam::Vec3], b: &[glam::Vec3]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| p.distance(*q))
+            .fold(0.0f32, f32::max)
+    };
+    let clip = options
+        .clip
+        .as_deref()
+        .map_or("no clip".to_string(), |c| format!("clip {c:?}"));
+    for (label, v) in [
+        ("bind pose", &bind[..]),
+        ("default pose", &rest[..]),
+        (&format!("first frame ({clip})")[..], first),
+    ] {
+        let (lo, hi) = bounds(v);
+        println!("  {label}: {lo:.3} … {hi:.3}, size {:.3}", hi - lo);
+    }
+    // 1 mm: poses closer than that are the same pose.
+    let same = 1e-3;
+    let (d_rest, d_first) = (apart(&bind, &rest), apart(&bind, first));
+    if d_rest > same {
+        println!(
+            "  the default node pose differs from the bind pose (vertices up to {d_rest:.3} m apart): \
+             garments modelled on this character are modelled on the bind pose"
+        );
+    }
+    if first.len() == bind.len() && d_first > same {
+        println!(
+            "  the first frame differs from the bind pose (vertices up to {d_first:.3} m apart)"
+        );
+    }
 }
 
 /// `drape mannequin`: writes the mannequin's frame sequences and stool.

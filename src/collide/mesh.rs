@@ -391,9 +391,8 @@ impl Columns {
         let mut odd = false;
         for &t in &self.buckets[i * self.size[1] + j] {
             let [a, b, c] = surface.triangles[t as usize].map(|v| surface.vertices[v as usize]);
-            match crossing(p, a, b, c)? {
-                true => odd = !odd,
-                false => {}
+            if crossing(p, a, b, c)? {
+                odd = !odd;
             }
         }
         Some(odd)

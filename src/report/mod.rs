@@ -180,6 +180,8 @@ pub struct CharacterReport {
     pub shell_radius: f32,
     /// `"reused"` (an up-to-date cache), `"built"`, or why none was used.
     pub shell_cache: &'static str,
+    /// Height [m] of its first frame after `scale` (extent along Y).
+    pub height_m: f32,
 }
 
 /// One garment's counts.

@@ -194,11 +194,7 @@ fn meshes(
                 triangles,
                 bones: bones.clone(),
                 weights,
-                instances: if skin.is_some() {
-                    Vec::new()
-                } else {
-                    users.iter().filter_map(|n| index[n.index()]).collect()
-                },
+                instances: users.iter().filter_map(|n| index[n.index()]).collect(),
                 uvs: reader
                     .read_tex_coords(0)
                     .map(|t| t.into_f32().map(|[u, v]| [u, 1.0 - v]).collect()),

@@ -49,7 +49,8 @@ pub struct Mesh {
     pub bones: Vec<Bone>,
     /// Per vertex: (bone index, normalised weight).
     pub weights: Vec<Vec<(u32, f32)>>,
-    /// Nodes that place this mesh (rigid meshes only; a skinned mesh is placed by its bones).
+    /// Nodes that place this mesh: a rigid mesh once per node; a skinned mesh is posed by its
+    /// bones, and its first node places only its bind pose ([`Asset::bind_pose`]).
     pub instances: Vec<usize>,
     /// First texture coordinate set, one per vertex, when the file has one.
     pub uvs: Option<Vec<[f32; 2]>>,
@@ -82,6 +83,26 @@ pub struct Asset {
     pub clips: Vec<Clip>,
     /// What the importer found suspicious but could read (repeated node names, ...).
     pub warnings: Vec<String>,
+}
+
+/// Index of the clip called `name` among `names`: so named exactly, else so named but for
+/// case when only one clip is, else given as a number ("0" for an unnamed clip).
+pub fn find_clip<'a>(names: impl Iterator<Item = &'a str> + Clone, name: &str) -> Option<usize> {
+    let count = names.clone().count();
+    let folded = name.to_lowercase();
+    let mut same = names
+        .clone()
+        .enumerate()
+        .filter(|(_, c)| c.to_lowercase() == folded);
+    let by_case = match (same.next(), same.next()) {
+        (Some((i, _)), None) => Some(i),
+        _ => None,
+    };
+    names
+        .clone()
+        .position(|c| c == name)
+        .or(by_case)
+        .or_else(|| name.parse::<usize>().ok().filter(|&i| i < count))
 }
 
 /// Whether `name` is `mesh`'s mesh, node or material name.
@@ -156,24 +177,9 @@ impl Asset {
         Ok(asset)
     }
 
-    /// Index of the clip called `name` (or so named but for case, when only one clip is), or
-    /// given as a number ("0" for an unnamed clip).
+    /// Index of the clip called `name` (see [`find_clip`]).
     pub fn clip_index(&self, name: &str) -> Option<usize> {
-        let exact = self.clips.iter().position(|c| c.name == name);
-        let folded = || {
-            let mut same = self
-                .clips
-                .iter()
-                .enumerate()
-                .filter(|(_, c)| c.name.to_lowercase() == name.to_lowercase());
-            match (same.next(), same.next()) {
-                (Some((i, _)), None) => Some(i),
-                _ => None,
-            }
-        };
-        exact
-            .or_else(folded)
-            .or_else(|| name.parse::<usize>().ok().filter(|&i| i < self.clips.len()))
+        find_clip(self.clips.iter().map(|c| c.name.as_str()), name)
     }
 
     /// The triangles over [`Asset::pose`]'s vertices of the meshes `selection` keeps (all of
@@ -231,7 +237,7 @@ impl Asset {
 
     /// Calls `f` for each mesh as laid out in [`Asset::pose`] (rigid meshes once per instance)
     /// with the index of its first vertex there.
-    fn for_each_copy(&self, mut f: impl FnMut(&Mesh, u32)) {
+    fn for_each_copy<'a>(&'a self, mut f: impl FnMut(&'a Mesh, u32)) {
         let mut base = 0u32;
         for m in &self.meshes {
             let copies = if m.bones.is_empty() {
@@ -291,6 +297,39 @@ impl Asset {
                     .sum()
             }));
         }
+        out
+    }
+
+    /// The bind pose over [`Asset::pose`]'s vertices: skinned meshes as stored (the pose their
+    /// inverse bind matrices were made in) placed by their node, rigid meshes by the default
+    /// node pose.
+    /// It can differ from the default node pose (files whose nodes rest at a clip's first
+    /// frame) and from any clip's first frame.
+    pub fn bind_pose(&self) -> Vec<Vec3> {
+        let global = self.node_transforms(None, 0.0);
+        let mut out = Vec::new();
+        for m in &self.meshes {
+            if m.bones.is_empty() {
+                for &node in &m.instances {
+                    out.extend(m.vertices.iter().map(|&v| global[node].transform_point3(v)));
+                }
+            } else {
+                let place = m.instances.first().map_or(Mat4::IDENTITY, |&n| global[n]);
+                out.extend(m.vertices.iter().map(|&v| place.transform_point3(v)));
+            }
+        }
+        out
+    }
+
+    /// Each copy of a mesh as laid out in [`Asset::pose`] (rigid meshes once per instance):
+    /// the mesh and its range of [`Asset::triangles`].
+    pub fn mesh_triangle_ranges(&self) -> Vec<(&Mesh, std::ops::Range<usize>)> {
+        let mut out = Vec::new();
+        let mut start = 0;
+        self.for_each_copy(|m, _| {
+            out.push((m, start..start + m.triangles.len()));
+            start += m.triangles.len();
+        });
         out
     }
 
