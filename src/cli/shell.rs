@@ -241,11 +241,6 @@ pub fn inspect(
         character.height(),
         options.scale
     );
-    if path.is_file() && !path.to_string_lossy().contains('%') {
-        let asset = drape::character::Asset::open(path)?;
-        inspect_meshes(&asset, &character, options, radius);
-        inspect_poses(&asset, &character, options);
-    }
     let clip = options.clip.as_deref().unwrap_or("rest pose");
     println!(
         "  {} frames at {fps} fps ({clip}), {} vertices, {} triangles, same topology: {}",
@@ -266,6 +261,11 @@ pub fn inspect(
     character
         .check_shell(radius)
         .map_err(|reason| bad_flag("radius", reason))?;
+    if path.is_file() && !path.to_string_lossy().contains('%') {
+        let asset = drape::character::Asset::open(path)?;
+        inspect_meshes(&asset, &character, options, radius);
+        inspect_poses(&asset, &character, options);
+    }
     let shell =
         drape::character::Shell::sample(&character.frames[0], &character.triangles[0], radius);
     let (binding, positions) = shell.memory_bytes(character.frames.len());
@@ -286,16 +286,23 @@ fn inspect_meshes(
     options: &CharacterOptions,
     radius: f32,
 ) {
-    // The shell as it would be sampled on the first frame, every mesh included.
-    let shell = drape::character::Shell::sample(character.frame(0), &asset.triangles(), radius);
+    // The shell as it would be sampled on the first frame, every mesh included (when that
+    // fits drape's limits; the colliding meshes' shell was checked already).
+    let triangles = asset.triangles();
+    let area = drape::character::shell::surface_area(character.frame(0), &triangles);
+    let shell = drape::character::Shell::check_size(area, radius, 1)
+        .ok()
+        .map(|_| drape::character::Shell::sample(character.frame(0), &triangles, radius));
     let ranges = asset.mesh_triangle_ranges();
     println!("  meshes ({}):", ranges.len());
     for (mesh, range) in ranges {
-        let particles = shell
-            .triangle
-            .iter()
-            .filter(|&&t| range.contains(&(t as usize)))
-            .count();
+        let particles = shell.as_ref().map_or("?".to_string(), |s| {
+            let n = s
+                .triangle
+                .iter()
+                .filter(|&&t| range.contains(&(t as usize)));
+            n.count().to_string()
+        });
         let collides = options.meshes.as_ref().is_none_or(|s| s.collides(mesh));
         println!(
             "    {:?} (node {:?}, material {:?}): {} vertices, {} triangles, {}{}",
