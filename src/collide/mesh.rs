@@ -4,18 +4,22 @@
 //!
 //! The mesh is first welded by position ([`Surface::new`]): exported meshes split vertices
 //! wherever normals or UVs change, and a flat-shaded one has three vertices of its own per
-//! triangle, so without welding neighbouring triangles do not know they share an edge. Inside is
-//! then decided at the nearest point of the surface by its angle-weighted pseudonormal (Bærentzen
-//! and Aanæs 2005): the face normal in a face's interior, the sum of the two faces' normals on an
-//! edge, the angle-weighted sum on a vertex. On a closed, welded mesh the sign of (p − q) · n is
-//! exactly inside or outside, in concave places too, whatever the mesh's shading.
+//! triangle, so without welding neighbouring triangles do not know they share an edge (and the
+//! mesh does not know it is closed).
 //!
-//! Each point's nearest triangle within [`REACH`] is found through a uniform grid of the
-//! triangles' boxes. A point farther than `REACH` from every triangle of a closed mesh is decided
-//! by ray parity (a ray along +X through a grid of the triangles' Y–Z boxes) and, when inside,
-//! its depth found over all triangles: cloth deep in a body is rare but must not read as outside.
-//! On an open mesh (a hole at the neck, a single-sided plane) parity means nothing, and such a
-//! point counts outside.
+//! On a closed welded mesh (every edge shared by an even number of triangles) a point is inside
+//! when the winding number along a ray from it (+X, through a grid of the triangles' Y–Z boxes)
+//! is not zero: exact in concave places, whatever the shading, and right where a pose sinks one
+//! part into another (a hand into a thigh: winding 2), where a nearest-surface test calls cloth
+//! between the two parts inside. On an open mesh (a hole at the neck, a single-sided plane) a
+//! ray can leave through the hole, so there a point within [`REACH`] of the surface is decided
+//! at its nearest surface point by the angle-weighted pseudonormal (Bærentzen and Aanæs 2005:
+//! the face normal in a face, the sum of the two faces' normals on an edge, the angle-weighted
+//! sum on a vertex), and a point farther away counts outside.
+//!
+//! Depth is the distance to the nearest triangle: within `REACH` through a uniform grid of the
+//! triangles' boxes, beyond it over all triangles (cloth deep in a body is rare, but must not
+//! read as shallow).
 
 use super::Penetration;
 use glam::{IVec3, Vec2, Vec3};
@@ -152,20 +156,17 @@ impl Surface {
             .par_iter()
             .with_min_len(1024)
             .map(|&p| {
-                let depth = match near.nearest(self, p) {
-                    Some((d2, q, t, w)) => {
-                        let n = self.pseudonormal(t, w);
-                        if (p - q).dot(n) < 0.0 {
-                            // At least a hair deep, so a point on the surface behind it counts.
-                            d2.sqrt().max(f32::MIN_POSITIVE)
-                        } else {
-                            0.0
-                        }
-                    }
-                    None => match &columns {
-                        Some(c) if c.inside(self, p) => self.distance(p),
-                        _ => 0.0,
-                    },
+                let nearest = near.nearest(self, p);
+                let inside = match (&columns, &nearest) {
+                    (Some(c), _) => c.inside(self, p),
+                    (None, Some((_, q, t, w))) => (p - *q).dot(self.pseudonormal(*t, *w)) < 0.0,
+                    (None, None) => false,
+                };
+                let depth = match (inside, nearest) {
+                    (false, _) => 0.0,
+                    // At least a hair deep, so a point on the surface behind it counts.
+                    (true, Some((d2, ..))) => d2.sqrt().max(f32::MIN_POSITIVE),
+                    (true, None) => self.distance(p),
                 };
                 Penetration::of_depth(depth)
             })
@@ -363,45 +364,46 @@ impl Columns {
         }
     }
 
-    /// Whether `p` is inside, by the parity of a +X ray's crossings. A ray that grazes an edge
-    /// or a vertex is cast again from a point a few micrometres aside.
+    /// Whether `p` is inside, by the winding number along a +X ray (each crossing counts +1
+    /// where the ray leaves the surface, −1 where it enters): 1 inside, 0 outside, 2 where a
+    /// pose sinks one part into another (a hand into a thigh), which is inside too. A ray that
+    /// grazes an edge or a vertex is cast again from a point a few micrometres aside.
     fn inside(&self, surface: &Surface, p: Vec3) -> bool {
         for nudge in [
             Vec2::ZERO,
             Vec2::new(3.1e-6, 1.7e-6),
             Vec2::new(-2.3e-6, 4.1e-6),
         ] {
-            if let Some(odd) = self.parity(surface, p + Vec3::new(0.0, nudge.x, nudge.y)) {
-                return odd;
+            if let Some(winding) = self.winding(surface, p + Vec3::new(0.0, nudge.x, nudge.y)) {
+                return winding != 0;
             }
         }
         false
     }
 
-    /// The parity of the crossings, or None when the ray grazes an edge or a vertex.
-    fn parity(&self, surface: &Surface, p: Vec3) -> Option<bool> {
+    /// The winding number along the ray, or None when it grazes an edge or a vertex.
+    fn winding(&self, surface: &Surface, p: Vec3) -> Option<i32> {
         let at = (Vec2::new(p.y, p.z) - self.lo) / self.cell;
         if at.x < 0.0 || at.y < 0.0 {
-            return Some(false);
+            return Some(0);
         }
         let (i, j) = (at.x as usize, at.y as usize);
         if i >= self.size[0] || j >= self.size[1] {
-            return Some(false);
+            return Some(0);
         }
-        let mut odd = false;
+        let mut winding = 0;
         for &t in &self.buckets[i * self.size[1] + j] {
             let [a, b, c] = surface.triangles[t as usize].map(|v| surface.vertices[v as usize]);
-            if crossing(p, a, b, c)? {
-                odd = !odd;
-            }
+            winding += crossing(p, a, b, c)?;
         }
-        Some(odd)
+        Some(winding)
     }
 }
 
-/// Whether the ray from `p` along +X crosses triangle `abc` (None when it passes within a
-/// rounding error of an edge or a vertex, where the answer is not to be trusted).
-fn crossing(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<bool> {
+/// How the ray from `p` along +X crosses triangle `abc`: +1 leaving the surface (the
+/// triangle faces +X), −1 entering, 0 missing it; None when it passes within a rounding error
+/// of an edge or a vertex, where the answer is not to be trusted.
+fn crossing(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<i32> {
     // Edge functions in the Y–Z plane, in f64.
     let e = |u: Vec3, v: Vec3| {
         (v.y as f64 - u.y as f64) * (p.z as f64 - u.z as f64)
@@ -410,21 +412,26 @@ fn crossing(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<bool> {
     let (wa, wb, wc) = (e(b, c), e(c, a), e(a, b));
     let area = wa + wb + wc;
     if area.abs() < 1e-30 {
-        return Some(false); // edge-on to the ray: crossed through its neighbours
+        return Some(0); // edge-on to the ray: crossed through its neighbours
     }
     let eps = 1e-9 * area.abs();
     if wa.abs() < eps || wb.abs() < eps || wc.abs() < eps {
         if (wa >= -eps && wb >= -eps && wc >= -eps) || (wa <= eps && wb <= eps && wc <= eps) {
             return None;
         }
-        return Some(false);
+        return Some(0);
     }
     let inside = (wa > 0.0 && wb > 0.0 && wc > 0.0) || (wa < 0.0 && wb < 0.0 && wc < 0.0);
     if !inside {
-        return Some(false);
+        return Some(0);
     }
     let x = (wa * a.x as f64 + wb * b.x as f64 + wc * c.x as f64) / area;
-    Some(x > p.x as f64)
+    // The projected area's sign is the sign of the normal's X.
+    Some(match (x > p.x as f64, area > 0.0) {
+        (false, _) => 0,
+        (true, true) => 1,
+        (true, false) => -1,
+    })
 }
 
 #[cfg(test)]
@@ -638,6 +645,37 @@ mod tests {
             assert!((p.deepest - 0.5).abs() < 1e-5, "{}", p.deepest);
             let q = penetration(vv, tt, &points[..3]);
             assert!((q.deepest - 0.03).abs() < 1e-5, "{}", q.deepest);
+        }
+    }
+
+    #[test]
+    fn a_part_sunk_into_another_is_inside_and_the_gap_beside_it_outside() {
+        // A body (cube) with a limb (a thinner box) sunk 10 cm into its side, as a pose folds
+        // a hand into a thigh: one mesh, both parts closed, the limb's end inside the body.
+        let (mut v, mut t) = cuboid(Vec3::splat(-0.5), Vec3::splat(0.5));
+        let (lv, lt) = cuboid(Vec3::new(0.4, -0.1, -0.1), Vec3::new(1.0, 0.1, 0.1));
+        let base = v.len() as u32;
+        v.extend(lv);
+        t.extend(lt.iter().map(|tri| tri.map(|i| i + base)));
+        let s = Surface::new(&v, &t);
+        assert!(s.closed());
+        let cases = [
+            (Vec3::new(0.45, 0.0, 0.0), true, "in both parts (winding 2)"),
+            (
+                Vec3::new(0.45, 0.12, 0.0),
+                true,
+                "in the body beside the sunk limb",
+            ),
+            (
+                Vec3::new(0.55, 0.12, 0.0),
+                false,
+                "outside both, by the limb's side",
+            ),
+            (Vec3::new(0.7, 0.0, 0.0), true, "in the limb"),
+            (Vec3::new(0.52, 0.3, 0.0), false, "outside the body's face"),
+        ];
+        for (p, expected, what) in cases {
+            assert_eq!(s.penetration(&[p]).inside == 1, expected, "{what} at {p}");
         }
     }
 
