@@ -1,8 +1,10 @@
-//! Characters: animated bodies that garments collide with, imported through assimp and sampled
-//! into frames at the scene's frame rate, then covered by a shell of collision particles.
+//! Characters: animated bodies that garments collide with, imported (glTF by node index, other
+//! formats through assimp) and sampled into frames at the scene's frame rate, then covered by a
+//! shell of collision particles.
 //!
 //! - [`import`]: one file (glTF/GLB, FBX, Collada, OBJ, ... whatever assimp reads) with its node
-//!   hierarchy, skinning and clips, posed at any time;
+//!   hierarchy, skinning and clips, posed at any time; [`MeshSelection`] picks the meshes that
+//!   collide;
 //! - [`Character`]: frames at the scene's fps from a skinned clip, a static mesh, or a sequence of
 //!   files (one mesh per frame), with unit scale, up axis, placement, time offset, speed and
 //!   loop/hold applied;
