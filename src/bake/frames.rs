@@ -37,6 +37,7 @@ pub fn run(
         targets,
     } = out;
     let frames = report.frames_requested;
+    let probes = MeshProbes::new(meshes);
     if progress.baked == 0 {
         progress.initial_energy = sim.energy();
         progress.hash = crate::character::cache::FNV_OFFSET;
@@ -55,7 +56,14 @@ pub fn run(
         let frame = report.frame_start + baked - 1;
         let start = Instant::now();
         match targets {
-            Some(t) => step_within(t, sim, backend, meshes, (frame, baked - 1), &mut progress)?,
+            Some(t) => step_within(
+                t,
+                sim,
+                backend,
+                (meshes, &probes),
+                (frame, baked - 1),
+                &mut progress,
+            )?,
             None => backend.step_frame(sim)?,
         }
         if let Some(bytes) = backend.uploaded_last_frame() {
@@ -81,7 +89,7 @@ pub fn run(
         // The free particles, gathered once for every penetration count.
         let free = sim.free_positions();
         let unstable = measure(sim, &free, frame, &mut progress, report);
-        measure_meshes(&free, meshes, baked as usize - 1, frame, report);
+        measure_meshes(&free, (meshes, &probes), baked as usize - 1, frame, report);
         if let Some(r) = &sim.residuals {
             progress.residuals.push(r.clone());
         }
@@ -203,7 +211,7 @@ fn step_within(
     t: &Targets,
     sim: &mut Simulation,
     backend: &mut Backend,
-    meshes: &BakeMeshes,
+    meshes: Shown,
     (frame, index): (u32, u32),
     progress: &mut Progress,
 ) -> Result<()> {
@@ -274,7 +282,7 @@ fn step_within(
 
 /// The worst structural strain of `sim` now and the deepest any free particle is inside a
 /// collider, a shell or a character's mesh (at baked frame `index`) [m].
-fn accuracy_of(sim: &Simulation, meshes: &BakeMeshes, index: usize) -> (f64, f32) {
+fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> (f64, f32) {
     let free = sim.free_positions();
     let deepest = solid_penetrations(sim, &free)
         .into_iter()
@@ -295,10 +303,26 @@ fn solid_penetrations(sim: &Simulation, free: &[glam::Vec4]) -> Vec<collide::Pen
     penetrations
 }
 
+/// The meshes a bake shows, with what the mesh metric keeps of them between frames.
+type Shown<'m> = (&'m BakeMeshes, &'m MeshProbes);
+
+/// Each character mesh's [`collide::mesh::Topology`], made once from its first frame (the
+/// characters' triangles never change, and vertices welded there ride the same skin).
+struct MeshProbes(Vec<collide::mesh::Topology>);
+
+impl MeshProbes {
+    fn new(meshes: &BakeMeshes) -> MeshProbes {
+        let made = meshes
+            .characters_at(0)
+            .map(|(_, vertices, triangles)| collide::mesh::Topology::new(vertices, triangles));
+        MeshProbes(made.collect())
+    }
+}
+
 /// The `free` particles inside each character's own mesh at baked frame `index`, by name.
 fn mesh_penetrations<'m>(
     free: &[glam::Vec4],
-    meshes: &'m BakeMeshes,
+    (meshes, probes): Shown<'m>,
     index: usize,
 ) -> Vec<(&'m str, collide::Penetration)> {
     let mut characters = meshes.characters_at(index).peekable();
@@ -307,8 +331,10 @@ fn mesh_penetrations<'m>(
     }
     let free: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
     characters
-        .map(|(name, vertices, triangles)| {
-            (name, collide::mesh::penetration(vertices, triangles, &free))
+        .zip(&probes.0)
+        .map(|((name, vertices, _), topology)| {
+            let surface = collide::mesh::Surface::posed(topology, vertices);
+            (name, surface.penetration(&free))
         })
         .collect()
 }
@@ -317,7 +343,7 @@ fn mesh_penetrations<'m>(
 /// baked frame `index` (shot frame `frame`), into `report`.
 fn measure_meshes(
     free: &[glam::Vec4],
-    meshes: &BakeMeshes,
+    meshes: Shown,
     index: usize,
     frame: u32,
     report: &mut Report,

@@ -24,7 +24,6 @@
 use super::Penetration;
 use glam::{IVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// How far from the surface a point is looked at through the grid [m].
 pub const REACH: f32 = 0.05;
@@ -82,64 +81,106 @@ enum Feature {
     Vertex(u32),
 }
 
-/// A character's mesh welded by position, with the pseudonormals that decide inside and out.
-pub struct Surface {
-    vertices: Vec<Vec3>,
+/// What of a character's mesh stays the same from frame to frame: which vertices weld
+/// together, the welded triangles, their edges, and whether the mesh is closed.
+#[derive(Clone, Debug)]
+pub struct Topology {
+    /// Per welded vertex, the input vertex that stands for it.
+    kept: Vec<u32>,
     /// Welded triangles, degenerate ones (two corners welded together) left out.
     triangles: Vec<[u32; 3]>,
-    /// Unit normal of each triangle.
-    faces: Vec<Vec3>,
-    /// Angle-weighted pseudonormal of each vertex.
-    corners: Vec<Vec3>,
-    /// Sum of the unit normals of the triangles on each edge (lower index first).
-    edges: HashMap<(u32, u32), Vec3>,
-    /// Every edge is shared by an even number of triangles (watertight): parity decides the
-    /// points beyond [`REACH`].
+    /// Every edge (lower index first) with its triangle, sorted: runs of one edge.
+    edges: Vec<((u32, u32), u32)>,
+    /// Every edge is shared by an even number of triangles.
     closed: bool,
 }
 
-impl Surface {
-    /// Welds `vertices` closer than [`WELD`] and computes the pseudonormals.
-    pub fn new(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Surface {
-        let (welded, map) = weld(vertices);
+impl Topology {
+    /// Welds the vertices of `frame` closer than [`WELD`] (vertices that ride the same skin
+    /// stay together in the other frames) and finds the welded mesh's edges.
+    pub fn new(frame: &[Vec3], triangles: &[[u32; 3]]) -> Topology {
+        let (kept, map) = weld(frame);
         let triangles: Vec<[u32; 3]> = triangles
             .iter()
             .map(|t| t.map(|i| map[i as usize]))
             .filter(|[a, b, c]| a != b && b != c && a != c)
             .collect();
-        let faces: Vec<Vec3> = triangles
+        let mut edges: Vec<((u32, u32), u32)> = triangles
             .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| welded[i as usize]);
-                (b - a).cross(c - a).normalize_or_zero()
+            .enumerate()
+            .flat_map(|(n, t)| {
+                (0..3).map(move |k| {
+                    let (i, j) = (t[k], t[(k + 1) % 3]);
+                    ((i.min(j), i.max(j)), n as u32)
+                })
             })
             .collect();
-        let mut corners = vec![Vec3::ZERO; welded.len()];
-        let mut edges: HashMap<(u32, u32), (Vec3, u32)> = HashMap::new();
-        for (t, n) in triangles.iter().zip(&faces) {
-            for k in 0..3 {
-                let (i, j, l) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                let [p, q, r] = [i, j, l].map(|v| welded[v as usize]);
-                corners[i as usize] += (q - p).angle_between(r - p) * *n;
-                let e = edges.entry((i.min(j), i.max(j))).or_default();
-                e.0 += *n;
-                e.1 += 1;
-            }
-        }
-        let closed = !edges.is_empty() && edges.values().all(|e| e.1 % 2 == 0);
-        Surface {
-            vertices: welded,
+        edges.sort_unstable();
+        let closed = !edges.is_empty()
+            && edges
+                .chunk_by(|a, b| a.0 == b.0)
+                .all(|run| run.len() % 2 == 0);
+        Topology {
+            kept,
             triangles,
-            faces,
-            corners,
-            edges: edges.into_iter().map(|(k, v)| (k, v.0)).collect(),
+            edges,
             closed,
+        }
+    }
+}
+
+/// A character's mesh welded by position in one frame, ready to say which points are inside.
+pub struct Surface<'t> {
+    topology: std::borrow::Cow<'t, Topology>,
+    /// The welded vertices.
+    vertices: Vec<Vec3>,
+    /// The pseudonormals of an open mesh; None for a closed one (every edge shared by an even
+    /// number of triangles), which the winding number decides.
+    open: Option<Pseudonormals>,
+}
+
+/// Angle-weighted pseudonormals (Bærentzen and Aanæs 2005), for open meshes.
+struct Pseudonormals {
+    /// Unit normal of each triangle.
+    faces: Vec<Vec3>,
+    /// Angle-weighted sum of the unit normals of each vertex's triangles.
+    corners: Vec<Vec3>,
+    /// Each edge (lower index first), sorted, with the sum of its triangles' unit normals.
+    edges: Vec<((u32, u32), Vec3)>,
+}
+
+impl Surface<'static> {
+    /// Welds `vertices` closer than [`WELD`]; on an open mesh, computes the pseudonormals.
+    pub fn new(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Surface<'static> {
+        let topology = Topology::new(vertices, triangles);
+        Surface::build(std::borrow::Cow::Owned(topology), vertices)
+    }
+}
+
+impl<'t> Surface<'t> {
+    /// The mesh of `topology` with the vertices of one frame (the frame's own vertices, in the
+    /// order `topology` was made from).
+    pub fn posed(topology: &'t Topology, vertices: &[Vec3]) -> Surface<'t> {
+        Surface::build(std::borrow::Cow::Borrowed(topology), vertices)
+    }
+
+    fn build(topology: std::borrow::Cow<'t, Topology>, vertices: &[Vec3]) -> Surface<'t> {
+        let welded: Vec<Vec3> = topology
+            .kept
+            .iter()
+            .map(|&v| vertices[v as usize])
+            .collect();
+        let open = (!topology.closed).then(|| Pseudonormals::new(&welded, &topology));
+        Surface {
+            topology,
+            vertices: welded,
+            open,
         }
     }
 
     /// Every edge is shared by an even number of triangles.
     pub fn closed(&self) -> bool {
-        self.closed
+        self.topology.closed
     }
 
     /// The welded vertex count.
@@ -149,53 +190,53 @@ impl Surface {
 
     /// How many of `points` lie inside and the deepest of them [m].
     pub fn penetration(&self, points: &[Vec3]) -> Penetration {
+        let Some(normals) = &self.open else {
+            // Closed: the winding number picks the points inside (few, usually none), and
+            // only those are measured.
+            let columns = Columns::new(self);
+            let inside: Vec<Vec3> = points
+                .par_iter()
+                .with_min_len(1024)
+                .filter(|&&p| columns.inside(self, p))
+                .copied()
+                .collect();
+            let near = NearGrid::new(self, &inside);
+            return inside
+                .par_iter()
+                .map(|&p| {
+                    let depth = match near.nearest(self, p) {
+                        Some((d2, ..)) => d2.sqrt(),
+                        None => self.distance(p),
+                    };
+                    // At least a hair deep, so a point on the surface counts.
+                    Penetration::of_depth(depth.max(f32::MIN_POSITIVE))
+                })
+                .reduce(Penetration::default, Penetration::merge);
+        };
         let near = NearGrid::new(self, points);
-        let columns = self.closed.then(|| Columns::new(self));
         // A count and a maximum: the same on any number of threads.
         points
             .par_iter()
             .with_min_len(1024)
-            .map(|&p| {
-                let nearest = near.nearest(self, p);
-                let inside = match (&columns, &nearest) {
-                    (Some(c), _) => c.inside(self, p),
-                    (None, Some((_, q, t, w))) => (p - *q).dot(self.pseudonormal(*t, *w)) < 0.0,
-                    (None, None) => false,
-                };
-                let depth = match (inside, nearest) {
-                    (false, _) => 0.0,
-                    // At least a hair deep, so a point on the surface behind it counts.
-                    (true, Some((d2, ..))) => d2.sqrt().max(f32::MIN_POSITIVE),
-                    (true, None) => self.distance(p),
-                };
-                Penetration::of_depth(depth)
+            .map(|&p| match near.nearest(self, p) {
+                Some((d2, q, t, w))
+                    if (p - q).dot(normals.at(&self.topology.triangles, t, w)) < 0.0 =>
+                {
+                    Penetration::of_depth(d2.sqrt().max(f32::MIN_POSITIVE))
+                }
+                _ => Penetration::default(),
             })
             .reduce(Penetration::default, Penetration::merge)
     }
 
-    /// The pseudonormal at barycentric weights `w` of triangle `t` (unnormalised; its sign
-    /// against p − q is what counts).
-    fn pseudonormal(&self, t: usize, w: Vec3) -> Vec3 {
-        let [a, b, c] = self.triangles[t];
-        let feature = match (w.x == 0.0, w.y == 0.0, w.z == 0.0) {
-            (false, true, true) => Feature::Vertex(a),
-            (true, false, true) => Feature::Vertex(b),
-            (true, true, false) => Feature::Vertex(c),
-            (false, false, true) => Feature::Edge(a, b),
-            (true, false, false) => Feature::Edge(b, c),
-            (false, true, false) => Feature::Edge(c, a),
-            _ => Feature::Face,
-        };
-        match feature {
-            Feature::Face => self.faces[t],
-            Feature::Edge(i, j) => self.edges[&(i.min(j), i.max(j))],
-            Feature::Vertex(i) => self.corners[i as usize],
-        }
+    /// The welded triangles.
+    fn triangles(&self) -> &[[u32; 3]] {
+        &self.topology.triangles
     }
 
     /// Distance from `p` to the nearest triangle, over all of them.
     fn distance(&self, p: Vec3) -> f32 {
-        self.triangles
+        self.triangles()
             .iter()
             .map(|t| {
                 let [a, b, c] = t.map(|i| self.vertices[i as usize]);
@@ -207,39 +248,92 @@ impl Surface {
     }
 }
 
-/// Welds positions closer than [`WELD`]: the distinct positions and each vertex's index among
-/// them (the first vertex of a group stands for it).
-fn weld(vertices: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
-    let cell_of = |p: Vec3| (p / WELD).floor().as_ivec3();
-    let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::new();
-    let mut welded: Vec<Vec3> = Vec::new();
-    let mut map = Vec::with_capacity(vertices.len());
-    for &v in vertices {
-        let c = cell_of(v);
-        let mut found = None;
-        'search: for x in -1..=1 {
-            for y in -1..=1 {
-                for z in -1..=1 {
-                    let Some(list) = cells.get(&(c + IVec3::new(x, y, z))) else {
-                        continue;
-                    };
-                    if let Some(&i) = list
-                        .iter()
-                        .find(|&&i| welded[i as usize].distance_squared(v) <= WELD * WELD)
-                    {
-                        found = Some(i);
-                        break 'search;
-                    }
-                }
+impl Pseudonormals {
+    /// From the welded vertices of a frame and the mesh's topology.
+    fn new(vertices: &[Vec3], topology: &Topology) -> Pseudonormals {
+        let (triangles, edges) = (&topology.triangles, &topology.edges);
+        let faces: Vec<Vec3> = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| vertices[i as usize]);
+                (b - a).cross(c - a).normalize_or_zero()
+            })
+            .collect();
+        let mut corners = vec![Vec3::ZERO; vertices.len()];
+        for (t, n) in triangles.iter().zip(&faces) {
+            for k in 0..3 {
+                let (i, j, l) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                let [p, q, r] = [i, j, l].map(|v| vertices[v as usize]);
+                corners[i as usize] += (q - p).angle_between(r - p) * *n;
             }
         }
-        let i = found.unwrap_or_else(|| {
-            welded.push(v);
-            let i = welded.len() as u32 - 1;
-            cells.entry(c).or_default().push(i);
-            i
-        });
-        map.push(i);
+        let edges = edges
+            .chunk_by(|a, b| a.0 == b.0)
+            .map(|run| (run[0].0, run.iter().map(|e| faces[e.1 as usize]).sum()))
+            .collect();
+        Pseudonormals {
+            faces,
+            corners,
+            edges,
+        }
+    }
+
+    /// The pseudonormal at barycentric weights `w` of triangle `t` (unnormalised; its sign
+    /// against p − q is what counts).
+    fn at(&self, triangles: &[[u32; 3]], t: usize, w: Vec3) -> Vec3 {
+        let [a, b, c] = triangles[t];
+        let feature = match (w.x == 0.0, w.y == 0.0, w.z == 0.0) {
+            (false, true, true) => Feature::Vertex(a),
+            (true, false, true) => Feature::Vertex(b),
+            (true, true, false) => Feature::Vertex(c),
+            (false, false, true) => Feature::Edge(a, b),
+            (true, false, false) => Feature::Edge(b, c),
+            (false, true, false) => Feature::Edge(c, a),
+            _ => Feature::Face,
+        };
+        match feature {
+            Feature::Face => self.faces[t],
+            Feature::Edge(i, j) => {
+                let key = (i.min(j), i.max(j));
+                let at = self.edges.binary_search_by_key(&key, |e| e.0);
+                at.map_or(self.faces[t], |k| self.edges[k].1)
+            }
+            Feature::Vertex(i) => self.corners[i as usize],
+        }
+    }
+}
+
+/// Welds positions closer than [`WELD`]: the vertex that stands for each welded one, and each
+/// vertex's welded index. Vertices are swept in order of X; each one not yet welded stands for
+/// those after it within `WELD`.
+fn weld(vertices: &[Vec3]) -> (Vec<u32>, Vec<u32>) {
+    let mut order: Vec<u32> = (0..vertices.len() as u32).collect();
+    order.sort_unstable_by(|&a, &b| {
+        vertices[a as usize]
+            .x
+            .total_cmp(&vertices[b as usize].x)
+            .then(a.cmp(&b))
+    });
+    let mut map = vec![u32::MAX; vertices.len()];
+    let mut welded = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        if map[i as usize] != u32::MAX {
+            continue;
+        }
+        let v = vertices[i as usize];
+        let at = welded.len() as u32;
+        welded.push(i);
+        map[i as usize] = at;
+        for &j in order[k + 1..]
+            .iter()
+            .take_while(|&&j| vertices[j as usize].x - v.x <= WELD)
+        {
+            if map[j as usize] == u32::MAX
+                && vertices[j as usize].distance_squared(v) <= WELD * WELD
+            {
+                map[j as usize] = at;
+            }
+        }
     }
     (welded, map)
 }
@@ -269,7 +363,7 @@ impl NearGrid {
         // Each triangle's box: a point farther from it than from the nearest triangle found so
         // far cannot be nearer that triangle (most candidates are passed over on the box alone).
         let boxes: Vec<(Vec3, Vec3)> = surface
-            .triangles
+            .triangles()
             .iter()
             .map(|tri| {
                 let [a, b, c] = tri.map(|i| surface.vertices[i as usize]);
@@ -306,7 +400,7 @@ impl NearGrid {
             if outside.length_squared() >= best.0 {
                 continue;
             }
-            let [a, b, c] = surface.triangles[t as usize].map(|v| surface.vertices[v as usize]);
+            let [a, b, c] = surface.triangles()[t as usize].map(|v| surface.vertices[v as usize]);
             let w = closest_barycentric(p, a, b, c);
             let q = a * w.x + b * w.y + c * w.z;
             let d2 = p.distance_squared(q);
@@ -323,6 +417,8 @@ impl NearGrid {
 struct Columns {
     cell: f32,
     lo: Vec2,
+    /// The surface's largest X: a ray from beyond it crosses nothing.
+    x_max: f32,
     size: [usize; 2],
     buckets: Vec<Vec<u32>>,
 }
@@ -345,7 +441,7 @@ impl Columns {
             ((hi.y - lo.y) / cell) as usize + 1,
         ];
         let mut buckets = vec![Vec::new(); size[0] * size[1]];
-        for (t, tri) in surface.triangles.iter().enumerate() {
+        for (t, tri) in surface.triangles().iter().enumerate() {
             let [a, b, c] = tri.map(|i| yz(surface.vertices[i as usize]));
             let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
             let i0 = ((tlo - lo) / cell).as_uvec2();
@@ -359,6 +455,7 @@ impl Columns {
         Columns {
             cell,
             lo,
+            x_max: surface.vertices.iter().fold(f32::MIN, |m, v| m.max(v.x)),
             size,
             buckets,
         }
@@ -384,7 +481,7 @@ impl Columns {
     /// The winding number along the ray, or None when it grazes an edge or a vertex.
     fn winding(&self, surface: &Surface, p: Vec3) -> Option<i32> {
         let at = (Vec2::new(p.y, p.z) - self.lo) / self.cell;
-        if at.x < 0.0 || at.y < 0.0 {
+        if at.x < 0.0 || at.y < 0.0 || p.x > self.x_max {
             return Some(0);
         }
         let (i, j) = (at.x as usize, at.y as usize);
@@ -393,7 +490,7 @@ impl Columns {
         }
         let mut winding = 0;
         for &t in &self.buckets[i * self.size[1] + j] {
-            let [a, b, c] = surface.triangles[t as usize].map(|v| surface.vertices[v as usize]);
+            let [a, b, c] = surface.triangles()[t as usize].map(|v| surface.vertices[v as usize]);
             winding += crossing(p, a, b, c)?;
         }
         Some(winding)
