@@ -87,22 +87,19 @@ pub struct Asset {
 
 /// Index of the clip called `name` among `names`: so named exactly, else so named but for
 /// case when only one clip is, else given as a number ("0" for an unnamed clip).
-pub fn find_clip<'a>(names: impl Iterator<Item = &'a str> + Clone, name: &str) -> Option<usize> {
-    let count = names.clone().count();
+pub fn find_clip<'a>(names: impl IntoIterator<Item = &'a str>, name: &str) -> Option<usize> {
+    let names: Vec<&str> = names.into_iter().collect();
     let folded = name.to_lowercase();
-    let mut same = names
-        .clone()
-        .enumerate()
-        .filter(|(_, c)| c.to_lowercase() == folded);
+    let mut same = (0..names.len()).filter(|&i| names[i].to_lowercase() == folded);
     let by_case = match (same.next(), same.next()) {
-        (Some((i, _)), None) => Some(i),
+        (Some(i), None) => Some(i),
         _ => None,
     };
     names
-        .clone()
-        .position(|c| c == name)
+        .iter()
+        .position(|&c| c == name)
         .or(by_case)
-        .or_else(|| name.parse::<usize>().ok().filter(|&i| i < count))
+        .or_else(|| name.parse::<usize>().ok().filter(|&i| i < names.len()))
 }
 
 /// Whether `name` is `mesh`'s mesh, node or material name.
@@ -140,7 +137,7 @@ impl Asset {
     }
 
     /// Reads any file through assimp, glTF included: the way drape read glTF before it bound
-    /// by index, kept for comparisons (tests, `drape inspect`).
+    /// by index, kept for comparisons in the tests.
     pub fn open_with_assimp(path: &Path) -> Result<Asset> {
         Asset::read(path, assimp::open)
     }
@@ -335,18 +332,12 @@ impl Asset {
 
     /// Texture coordinates over the vertices of [`Asset::pose`], when every mesh has them.
     pub fn uvs(&self) -> Option<Vec<[f32; 2]>> {
-        let mut out = Vec::new();
-        for m in &self.meshes {
-            let copies = if m.bones.is_empty() {
-                m.instances.len()
-            } else {
-                1
-            };
-            for _ in 0..copies {
-                out.extend_from_slice(m.uvs.as_ref()?);
-            }
-        }
-        Some(out)
+        let mut out = Some(Vec::new());
+        self.for_each_copy(|m, _| match (&mut out, &m.uvs) {
+            (Some(all), Some(uvs)) => all.extend_from_slice(uvs),
+            _ => out = None,
+        });
+        out
     }
 
     /// Triangles over the vertices of [`Asset::pose`].
