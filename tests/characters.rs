@@ -859,3 +859,61 @@ fn gltf_by_index_gives_assimps_frames_for_every_shipped_clip() {
         }
     }
 }
+
+/// The largest distance between two characters' triangle corners over their frames, triangle
+/// by triangle (formats split vertices differently: FBX and Collada keep one per corner).
+fn worst_corner_distance(a: &Character, b: &Character) -> f32 {
+    let (ta, tb) = (a.triangles_of(0), b.triangles_of(0));
+    assert_eq!(ta.len(), tb.len(), "triangle counts");
+    assert_eq!(a.frames.len(), b.frames.len(), "frame counts");
+    let mut worst = 0.0f32;
+    for (fa, fb) in a.frames.iter().zip(&b.frames) {
+        for (x, y) in ta.iter().zip(tb) {
+            for c in 0..3 {
+                worst = worst.max(fa[x[c] as usize].distance(fb[y[c] as usize]));
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn fbx_and_collada_copies_give_the_gltf_frames() {
+    // tests/assets/CesiumMan/README.md says how they were written (Blender 3.4's FBX exporter,
+    // in centimetres; assimp's Collada exporter from that FBX).
+    let frames = 121;
+    let gltf = clip(
+        &Asset::open(&cesium_man()).unwrap(),
+        &cesium_man(),
+        Some("0"),
+        frames,
+    );
+    for name in ["CesiumMan.fbx", "CesiumMan.dae"] {
+        let path = Path::new("tests/assets/CesiumMan").join(name);
+        let asset = Asset::open(&path).unwrap();
+        let options = CharacterOptions {
+            clip: Some("0".into()),
+            scale: 0.01,
+            ..Default::default()
+        };
+        let other = Character::from_asset(&asset, &path, &options, 60.0, frames).unwrap();
+        assert!(
+            other.size_warning(0.01).is_none(),
+            "{name}: 1.46 m at scale 0.01"
+        );
+        // At scale 1 the centimetres read as a 146 m body, and the warning says what they are.
+        let metres = CharacterOptions {
+            clip: Some("0".into()),
+            ..Default::default()
+        };
+        let raw = Character::from_asset(&asset, &path, &metres, 60.0, 1).unwrap();
+        let warning = raw.size_warning(1.0).expect("a 146 m body is warned of");
+        assert!(
+            warning.contains("read as centimetres (scale 0.01)"),
+            "{warning}"
+        );
+        let worst = worst_corner_distance(&other, &gltf);
+        eprintln!("{name}: frames within {worst:.2e} m of the glTF's");
+        assert!(worst < 1e-5, "{name}: frames {worst} m from the glTF's");
+    }
+}

@@ -393,9 +393,25 @@ impl Character {
         } else {
             "is it in other units than metres?"
         };
+        // A file in centimetres, millimetres or inches is told so in plain words.
+        let unit = [
+            (0.01, "centimetres"),
+            (0.001, "millimetres"),
+            (0.0254, "inches"),
+        ]
+        .into_iter()
+        .find(|&(u, _)| plausible.contains(&(size * u)))
+        .map(|(u, name)| {
+            format!(
+                "; read as {name} (scale {}) it is {:.3} m tall",
+                scale * u,
+                size * u
+            )
+        })
+        .unwrap_or_default();
         Some(format!(
             "{} is {size:.3} m tall at scale {scale}: {what}; \
-             scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres)",
+             scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres){unit}",
             self.source.display()
         ))
     }
