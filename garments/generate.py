@@ -1,12 +1,23 @@
 #!/usr/bin/env python3
 """Writes the garment meshes of this folder (run from anywhere; deterministic output).
 
-cushion.obj: a closed ellipsoid 0.5 x 0.16 x 0.5 m (a solid: drape fills it).
-skirt.obj:   an open elliptic cone frustum, waist 0.68 x 0.28 m, hem 0.90 m wide, 0.55 m long
-             (a thin sheet: drape voxelizes its surface only).
+cushion.obj:      a closed ellipsoid 0.5 x 0.16 x 0.5 m (a solid: drape fills it).
+skirt.obj:        an open elliptic cone frustum, waist 0.68 x 0.28 m, hem 0.90 m wide, 0.55 m
+                  long (a thin sheet: drape voxelizes its surface only).
+cesium_skirt.obj: an A-line skirt modelled on CesiumMan's bind pose: an elliptic surface of
+                  revolution from his waist to his knees, every ring clear of the body by at
+                  least CLEARANCE (read from the character's own bind-pose vertices).
+cesium_cape.obj:  a cape down CesiumMan's bind-pose back, from his shoulders to his thighs.
+cesium_top.obj:   a top with two sleeves modelled on CesiumMan's bind pose (arms out and down):
+                  his own torso and upper arms pushed out along their normals by CLEARANCE.
+
+The CesiumMan garments are in the character file's frame (metres, Y up, bind pose): a scene
+places them with `"on": "<the character>"`.
 """
+import json
 import math
 import os
+import struct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -67,6 +78,170 @@ def skirt(segments=64, rows=16, waist=(0.34, 0.14), hem=0.45, length=0.55):
           vertices, uvs, faces)
 
 
+CESIUM = os.path.join(HERE, "..", "characters", "CesiumMan", "CesiumMan.glb")
+# Gap between a garment modelled on CesiumMan and his bind-pose skin [m].
+CLEARANCE = 0.025
+
+
+def glb_bind_pose(path):
+    """Vertices (bind pose: as stored, placed by the skinned node's parents) and triangles of
+    every primitive of a GLB's first mesh. Enough of glTF for CesiumMan: matrices on nodes,
+    float positions, unsigned short or int indices."""
+    data = open(path, "rb").read()
+    length = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + length])
+    binary = 20 + length + 8
+    parents = {c: i for i, n in enumerate(doc["nodes"]) for c in n.get("children", [])}
+    node = next(i for i, n in enumerate(doc["nodes"]) if n.get("mesh") == 0)
+
+    def matrix(n):
+        m = doc["nodes"][n].get("matrix", [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
+        return [[m[c * 4 + r] for c in range(4)] for r in range(4)]
+
+    def times(a, b):
+        return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+    place = matrix(node)
+    at = node
+    while at in parents:
+        at = parents[at]
+        place = times(matrix(at), place)
+
+    def read(accessor, fmt, width):
+        a = doc["accessors"][accessor]
+        view = doc["bufferViews"][a["bufferView"]]
+        start = binary + view.get("byteOffset", 0) + a.get("byteOffset", 0)
+        size = struct.calcsize("<" + fmt)
+        return [struct.unpack_from("<" + fmt, data, start + size * i) for i in range(a["count"])]
+
+    vertices, triangles = [], []
+    for p in doc["meshes"][0]["primitives"]:
+        base = len(vertices)
+        for x, y, z in read(p["attributes"]["POSITION"], "3f", 12):
+            vertices.append(tuple(place[r][0] * x + place[r][1] * y + place[r][2] * z + place[r][3]
+                                  for r in range(3)))
+        kind = doc["accessors"][p["indices"]]["componentType"]
+        flat = [i[0] for i in read(p["indices"], "H" if kind == 5123 else "I", 0)]
+        triangles += [tuple(base + i for i in flat[k:k + 3]) for k in range(0, len(flat), 3)]
+    return vertices, triangles
+
+
+def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13):
+    """An A-line skirt from CesiumMan's waist to his knees: each ring an ellipse about the
+    torso's centre whose radii grow linearly by `flare` from the waist's, and never come
+    closer than CLEARANCE to the body's extent in that ring's slab (arms left out: in the bind
+    pose they reach down beside the hips, far outside)."""
+    body, _ = glb_bind_pose(CESIUM)
+    torso = [v for v in body if abs(v[0]) < 0.16]
+
+    def extent(y, half=0.03):
+        near = [v for v in torso if abs(v[1] - y) <= half] or torso
+        xs, zs = [v[0] for v in near], [v[2] for v in near]
+        return (max(-min(xs), max(xs)), 0.5 * (max(zs) - min(zs)), 0.5 * (max(zs) + min(zs)))
+
+    wx, wz, centre = extent(waist_y)
+    vertices, uvs, faces = [], [], []
+    for r in range(rows + 1):
+        t = r / rows
+        y = waist_y + (hem_y - waist_y) * t
+        ex, ez, _ = extent(y)
+        rx = max(wx + CLEARANCE + flare * t, ex + CLEARANCE)
+        rz = max(wz + CLEARANCE + flare * t, ez + CLEARANCE)
+        for s in range(segments + 1):  # the seam is duplicated so texture coordinates run 0…1
+            phi = 2.0 * math.pi * s / segments
+            vertices.append((rx * math.cos(phi), y, centre - rz * math.sin(phi)))
+            uvs.append((s / segments, 1.0 - t))
+    for r in range(rows):
+        for s in range(segments):
+            a = r * (segments + 1) + s
+            b, c, d = a + 1, a + segments + 1, a + segments + 2
+            faces += [(a, c, d), (a, d, b)]
+    write("cesium_skirt.obj",
+          f"cesium_skirt: A-line skirt on CesiumMan's bind pose, waist y {waist_y} m, hem y {hem_y} m",
+          vertices, uvs, faces)
+
+
+def cesium_top(bottom=0.84, neck=1.09, cuff=0.36):
+    """A top with two sleeves: CesiumMan's bind-pose torso (from `bottom` up to `neck`) and
+    upper arms (out to |x| = `cuff`), welded by position and pushed out along the
+    angle-weighted vertex normals by CLEARANCE. Open at the hem, the neck and the cuffs."""
+    body, triangles = glb_bind_pose(CESIUM)
+    index, welded = {}, []
+    remap = []
+    for v in body:
+        key = tuple(round(c, 6) for c in v)
+        if key not in index:
+            index[key] = len(welded)
+            welded.append(v)
+        remap.append(index[key])
+    faces = [tuple(remap[i] for i in t) for t in triangles]
+    faces = [f for f in faces if len(set(f)) == 3]
+    normals = [[0.0, 0.0, 0.0] for _ in welded]
+
+    def sub(a, b):
+        return [a[k] - b[k] for k in range(3)]
+
+    def cross(a, b):
+        return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+    def unit(a):
+        n = math.sqrt(sum(c * c for c in a)) or 1.0
+        return [c / n for c in a]
+
+    for f in faces:
+        p = [welded[i] for i in f]
+        n = unit(cross(sub(p[1], p[0]), sub(p[2], p[0])))
+        for k in range(3):
+            e1, e2 = unit(sub(p[(k + 1) % 3], p[k])), unit(sub(p[(k + 2) % 3], p[k]))
+            angle = math.acos(max(-1.0, min(1.0, sum(e1[c] * e2[c] for c in range(3)))))
+            for c in range(3):
+                normals[f[k]][c] += angle * n[c]
+    inside = lambda v: bottom <= v[1] <= neck and abs(v[0]) <= cuff
+    kept = [f for f in faces if all(inside(welded[i]) for i in f)]
+    used = sorted({i for f in kept for i in f})
+    new = {old: k for k, old in enumerate(used)}
+    vertices = []
+    for i in used:
+        n = unit(normals[i])
+        vertices.append(tuple(welded[i][c] + CLEARANCE * n[c] for c in range(3)))
+    uvs = [(0.5 + v[0] / (2 * cuff), (v[1] - bottom) / (neck - bottom)) for v in vertices]
+    write("cesium_top.obj",
+          f"cesium_top: CesiumMan's bind-pose torso and upper arms pushed out {CLEARANCE} m",
+          vertices, uvs, [tuple(new[i] for i in f) for f in kept])
+
+
+def cesium_cape(columns=15, rows=23, collar=0.07, half_width=0.17, top=1.06, bottom=0.6,
+                curl=1.5):
+    """A cape down CesiumMan's back (his front is +Z): a trapezoid from a collar `collar`
+    either side of his spine at shoulder height (inside his shoulders, which the arms move)
+    to `half_width` either side at his thighs, bent round his back (z rises by `curl` x^2
+    towards the edges), every point CLEARANCE behind the deepest bind-pose vertex of the torso
+    and legs at its height."""
+    body, _ = glb_bind_pose(CESIUM)
+    back = [v for v in body if abs(v[0]) <= half_width + 0.03]
+    vertices, uvs, faces = [], [], []
+    for r in range(rows + 1):
+        y = top + (bottom - top) * r / rows
+        near = [v[2] for v in back if abs(v[1] - y) <= 0.04] or [v[2] for v in back]
+        z0 = min(near) - CLEARANCE
+        half = collar + (half_width - collar) * r / rows
+        for c in range(columns + 1):
+            x = -half + 2.0 * half * c / columns
+            vertices.append((x, y, z0 + curl * x * x))
+            uvs.append((c / columns, 1.0 - r / rows))
+    for r in range(rows):
+        for c in range(columns):
+            a = r * (columns + 1) + c
+            b, d, e = a + 1, a + columns + 1, a + columns + 2
+            faces += [(a, d, e), (a, e, b)]
+    write("cesium_cape.obj",
+          f"cesium_cape: a cape down CesiumMan's bind-pose back, {2 * collar} to {2 * half_width} m wide",
+          vertices, uvs, faces)
+
+
 if __name__ == "__main__":
     cushion()
     skirt()
+    cesium_skirt()
+    cesium_top()
+    cesium_cape()

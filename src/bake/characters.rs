@@ -10,6 +10,7 @@ use crate::export::gltf::AnimatedMesh;
 use crate::export::sequence::{Welding, CHARACTER_COLOUR};
 use crate::report::CharacterReport;
 use crate::scene::Scene;
+use glam::Vec3;
 use std::path::{Path, PathBuf};
 
 /// drape's cache folder (shell caches, and the mannequin files of the embedded default scene):
@@ -34,7 +35,9 @@ pub fn load_characters(
     let mut out = Vec::new();
     for (i, spec) in scene.characters.iter().enumerate() {
         let path = scene.character_path(i);
-        let options = spec.options();
+        let mut options = spec.options();
+        options.lead_in = scene.lead_in as usize;
+        options.hidden = garment_meshes_in(scene, &path);
         let frames = scene.frames as usize + 1;
         let mut character = Character::load(&path, &options, scene.fps, frames)?;
         let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
@@ -102,8 +105,12 @@ pub fn load_characters(
             height_m: character.height(),
         };
         // Exports and previews show the character when its topology holds over the frames.
+        let mut bind = Vec::new();
         let mesh = if character.same_topology() {
             let welding = Welding::new(&character.frames);
+            bind = welding
+                .frames(std::slice::from_ref(&character.bind))
+                .remove(0);
             let solid = character
                 .visible
                 .is_some()
@@ -143,9 +150,28 @@ pub fn load_characters(
             shell,
             report,
             mesh,
+            bind,
         });
     }
     Ok(out)
+}
+
+/// The meshes of `file` that mesh garments take for themselves (`mesh_name`): a character
+/// read from the same file leaves them out.
+pub fn garment_meshes_in(scene: &Scene, file: &Path) -> Vec<String> {
+    let same = |a: &Path| match (a.canonicalize(), file.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == file,
+    };
+    scene
+        .garments
+        .iter()
+        .filter_map(|g| {
+            let mesh = g.mesh.as_ref()?;
+            let name = g.mesh_name.as_ref()?;
+            same(&scene.base_dir.join(mesh)).then(|| name.clone())
+        })
+        .collect()
 }
 
 /// A character ready for a bake: its collision shell, what the report says of it, and its mesh
@@ -154,4 +180,6 @@ pub struct LoadedCharacter {
     pub shell: ShellCollider,
     pub report: CharacterReport,
     pub mesh: Option<AnimatedMesh>,
+    /// The mesh's vertices in the bind pose (welded as `mesh`'s; empty without a mesh).
+    pub bind: Vec<Vec3>,
 }

@@ -69,6 +69,9 @@ pub struct Measured {
     pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
     pub worst_frame: Option<FrameMetrics>,
     pub last_frame: Option<FrameMetrics>,
+    /// The pre-roll's report so far (absent in checkpoints of bakes without one).
+    #[serde(default)]
+    pub preroll: Option<crate::report::PrerollReport>,
 }
 
 /// What identifies the bake a checkpoint belongs to, and where it stands.

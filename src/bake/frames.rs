@@ -4,7 +4,7 @@
 use super::budget::{BudgetReport, FrameBudget, Targets, CALM_FRAMES, SETTLE_FRAMES};
 use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
-use super::report::{collider_penetrations, frame_metrics};
+use super::report::{collider_penetrations, frame_metrics, preroll_mesh, preroll_strain};
 use crate::backend::Backend;
 use crate::collide;
 use crate::error::Result;
@@ -156,6 +156,9 @@ fn sum_up(
     report: &mut Report,
 ) {
     report.ms_per_frame = Timing::of(&progress.frame_ms);
+    if let Some(p) = &mut report.preroll {
+        p.ms = progress.frame_ms.iter().take(p.frames as usize).sum();
+    }
     if backend.is_gpu() {
         report.gpu_upload_bytes_per_frame =
             Some(progress.uploaded / (progress.frame_ms.len() as u64).max(1));
@@ -190,6 +193,7 @@ impl Measured {
             mesh_penetrations_per_frame: report.mesh_penetrations_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
+            preroll: report.preroll.clone(),
         }
     }
 
@@ -200,6 +204,9 @@ impl Measured {
         report.mesh_penetrations_per_frame = self.mesh_penetrations_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
+        if self.preroll.is_some() {
+            report.preroll = self.preroll;
+        }
     }
 }
 
@@ -358,6 +365,7 @@ fn measure_meshes(
         deepest_m: Vec::new(),
     };
     for (c, (name, p)) in found.into_iter().enumerate() {
+        preroll_mesh(report, frame, c, name, p);
         this.inside.push(p.inside);
         this.deepest_m.push(p.deepest);
         if report.worst_mesh_penetrations.len() <= c {
@@ -393,6 +401,7 @@ fn measure(
         w.inside = w.inside.max(p.inside);
         w.deepest = w.deepest.max(p.deepest);
     }
+    preroll_strain(report, frame, error.max_strain);
     let metrics = frame_metrics(frame, &error, &penetrations);
     if report
         .worst_frame

@@ -11,6 +11,7 @@
 pub mod budget;
 pub mod characters;
 pub mod checkpoint;
+pub mod dress;
 mod frames;
 mod output;
 pub mod prepare;
@@ -84,8 +85,10 @@ pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     })
 }
 
-/// Bakes `scene` (validated) into `options.out`.
+/// Bakes `scene` (validated) into `options.out`: its pre-roll first, when a character has one
+/// ([`Scene::with_preroll`]).
 pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
+    let scene = &scene.with_preroll();
     // More threads than cores only take turns at every barrier of the frame (a 6 × 6 sheet: 0.03 s
     // on 1 thread, 7.8 s on 16, on 2 cores): clamp, and say so.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -235,6 +238,9 @@ fn run(
     let mut report = report::empty_report(scene, options, &sim, threads);
     report.until = options.until;
     let source = resumed_source(scene, options, resume_from, &sim.shells, &mut warnings)?;
+    if source.is_none() && !sim.shells.is_empty() {
+        report.clean_start = Some(dress::clean_start(&mut sim, &meshes));
+    }
     let targets = budget::Targets::of(scene);
     if let Some(t) = &targets {
         // The budget the frame after the checkpoint starts at (the cheapest on a fresh bake).
@@ -264,7 +270,9 @@ fn run(
     check_disk(scene, vertices, &options.scene_file, &options.out)?;
     // While the GPU simulates the CPU is free to write; on the CPU a writer thread would only
     // take turns with the solver.
-    let mut exports = output::Exports::open(scene, dir, &meshes, &rest, backend.is_gpu())?;
+    let shown = shown_scene(scene);
+    let mut exports = output::Exports::open(&shown, dir, &meshes, &rest, backend.is_gpu())?
+        .skipping((scene.lead_in - shown.lead_in) as usize);
     let mut writer = match scene.checkpoint_every {
         Some(0) => None,
         _ => Some(checkpoint::Writer::create(
@@ -324,15 +332,28 @@ fn run(
     report.checkpoints = writer.as_ref().map(checkpoint::Writer::report);
     let closing = Instant::now();
     let baked = report.frames_baked as usize;
-    exports.close(scene, dir, baked, &mut report)?;
+    exports.close(&shown, dir, baked, &mut report)?;
     around.lap(schedule::timed("export"), closing);
     let mut stage_times = sim.stage_times.clone();
     stage_times.add(&around);
     report.stages_ms = StageTiming::of(&stage_times, report.frames_baked);
+    report::as_shot(&mut report, scene);
     if report.backend.kind == "cpu" {
         report.backend.frames_on_one_thread = sim.sharing.solo_frames;
     }
     Ok((report, sim.export_positions()))
+}
+
+/// The scene the exports show: the shot as written, or with its pre-roll frames too when
+/// `output.preroll` asks for them (numbered before `frame_start`).
+fn shown_scene(scene: &Scene) -> Scene {
+    let mut shown = scene.clone();
+    if !scene.output.preroll {
+        shown.frames -= scene.lead_in;
+        shown.frame_start += scene.lead_in;
+        shown.lead_in = 0;
+    }
+    shown
 }
 
 /// Where a scene runs: its `backend`, except that accuracy targets (which simulate frames

@@ -22,11 +22,15 @@ use std::time::Instant;
 pub struct Exports {
     output: Output,
     spool: Option<Spool>,
+    /// Baked frames before the first one written: a pre-roll the exports leave out.
+    skip: usize,
 }
 
 impl Exports {
     /// Opens the outputs `scene` asks for in `dir`; `rest` holds the garments' particles before
-    /// the first frame (export order). `threaded`: write on a thread of their own.
+    /// the first frame (export order). `threaded`: write on a thread of their own. `scene`
+    /// is the shot the exports show: a bake's pre-roll frames (`lead_in` of the baked scene
+    /// beyond this one's) are passed over.
     pub fn open(
         scene: &Scene,
         dir: &Path,
@@ -59,6 +63,7 @@ impl Exports {
         Ok(Exports {
             output: Output::new(sinks, threaded),
             spool,
+            skip: 0,
         })
     }
 
@@ -67,8 +72,18 @@ impl Exports {
         self.spool.is_none() && matches!(&self.output, Output::Inline(s) if s.is_empty())
     }
 
-    /// Writes the next frame.
-    pub fn frame(&mut self, frame: Frame) -> Result<()> {
+    /// Passes over the first `frames` baked frames (a pre-roll the exports leave out).
+    pub fn skipping(mut self, frames: usize) -> Exports {
+        self.skip = frames;
+        self
+    }
+
+    /// Writes the next frame (none of those passed over).
+    pub fn frame(&mut self, mut frame: Frame) -> Result<()> {
+        if frame.index < self.skip {
+            return Ok(());
+        }
+        frame.index -= self.skip;
         if let Some(spool) = &mut self.spool {
             spool.frame(&frame)?;
         }
@@ -77,6 +92,7 @@ impl Exports {
 
     /// From frame index `from` on, mesh `mesh` has these faces.
     pub fn faces(&mut self, mesh: usize, from: usize, triangles: &[[u32; 3]]) -> Result<()> {
+        let from = from.saturating_sub(self.skip);
         if let Some(spool) = &mut self.spool {
             spool.faces(mesh, from, triangles);
         }
@@ -92,6 +108,7 @@ impl Exports {
         frames: usize,
         report: &mut Report,
     ) -> Result<()> {
+        let frames = frames.saturating_sub(self.skip);
         let (mut exports, written) = self.output.close(frames)?;
         let spec = &scene.output;
         let mut outputs = Outputs {

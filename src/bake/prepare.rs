@@ -26,19 +26,25 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
     let mut sim = Simulation::from_garments(scene, &garments, scene.solver.clone());
     let mut reports = Vec::new();
     let mut character_meshes = Vec::new();
+    let mut binds = Vec::new();
     for mut c in characters {
         c.shell.swept = scene.swept_collisions;
         sim.shells.push(c.shell);
         reports.push(c.report);
+        if c.mesh.is_some() {
+            binds.push(c.bind);
+        }
         character_meshes.extend(c.mesh);
     }
     if !sim.attachments.unbound().is_empty() {
         let skins = character_meshes
             .iter()
-            .map(|m| Skin {
+            .zip(binds)
+            .map(|(m, bind)| Skin {
                 name: m.name.clone(),
                 triangles: m.triangles.clone(),
                 frames: m.frames.clone(),
+                bind: Some(bind),
             })
             .collect();
         sim.attachments

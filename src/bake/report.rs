@@ -3,7 +3,8 @@
 use super::BakeOptions;
 use crate::collide;
 use crate::report::{
-    Backend, ColliderPenetration, FrameMetrics, GarmentReport, Outputs, Report, Timing, SCHEMA,
+    Backend, ColliderPenetration, FrameMetrics, GarmentReport, Outputs, PrerollReport, Report,
+    Timing, SCHEMA,
 };
 use crate::scene::Scene;
 use crate::sim::{metrics, Simulation};
@@ -64,6 +65,12 @@ pub(super) fn empty_report(
         gpu_upload_bytes_per_frame: None,
         mesh_penetrations_per_frame: Vec::new(),
         torn_springs: 0,
+        preroll: (scene.lead_in > 0).then(|| PrerollReport {
+            frames: scene.lead_in,
+            exported: scene.output.preroll,
+            ..PrerollReport::default()
+        }),
+        clean_start: None,
         stable: true,
         failure: None,
         interrupted: None,
@@ -105,4 +112,50 @@ pub(super) fn collider_penetrations(p: &[collide::Penetration]) -> Vec<ColliderP
             penetration,
         })
         .collect()
+}
+
+/// The report of a bake of `scene` with a pre-roll ([`Scene::with_preroll`]) as the shot sees
+/// it: its first frame and frame counts those of the scene as written (the pre-roll's frames
+/// are in `preroll`, and keep their numbers before `frame_start` in the per-frame lists).
+pub(super) fn as_shot(report: &mut Report, scene: &Scene) {
+    let lead = scene.lead_in;
+    if lead == 0 {
+        return;
+    }
+    report.frame_start += lead;
+    report.frames_requested -= lead;
+    report.frames_baked = report.frames_baked.saturating_sub(lead);
+}
+
+/// Records frame `frame`'s strain in the pre-roll's report, when it is a pre-roll frame.
+pub(super) fn preroll_strain(report: &mut Report, frame: u32, strain: f64) {
+    let start = report.frame_start;
+    if let Some(p) = report.preroll.as_mut().filter(|p| frame < start + p.frames) {
+        p.frames_baked = p.frames_baked.max(frame - start + 1);
+        p.max_strain = p.max_strain.max(strain);
+    }
+}
+
+/// Records frame `frame`'s penetrations of character `c` (`name`) in the pre-roll's report,
+/// when it is a pre-roll frame.
+pub(super) fn preroll_mesh(
+    report: &mut Report,
+    frame: u32,
+    c: usize,
+    name: &str,
+    p: collide::Penetration,
+) {
+    let start = report.frame_start;
+    let Some(pre) = report.preroll.as_mut().filter(|p| frame < start + p.frames) else {
+        return;
+    };
+    if pre.mesh_penetrations.len() <= c {
+        pre.mesh_penetrations.push(crate::report::MeshPenetration {
+            character: name.to_string(),
+            penetration: collide::Penetration::default(),
+        });
+    }
+    let worst = &mut pre.mesh_penetrations[c].penetration;
+    worst.inside = worst.inside.max(p.inside);
+    worst.deepest = worst.deepest.max(p.deepest);
 }

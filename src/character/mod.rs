@@ -54,6 +54,50 @@ pub struct CharacterOptions {
     pub sequence_fps: Option<f32>,
     /// Which of the file's meshes collide (None: all of them).
     pub meshes: Option<MeshSelection>,
+    /// Meshes left out altogether, neither colliding nor shown (a garment modelled in the
+    /// character's file), by mesh, node or material name.
+    pub hidden: Vec<String>,
+    /// The character's own pre-roll: bind pose, then a blend into the clip's first frame.
+    pub preroll: Option<Preroll>,
+    /// Frames the bake simulates before the clip's first frame (the scene's longest pre-roll):
+    /// this character's pre-roll ends with them; without one it holds the clip's first frame.
+    pub lead_in: usize,
+}
+
+/// A pre-roll ([`CharacterOptions::preroll`]): `settle` frames in the bind pose, then `blend`
+/// frames into the clip's first frame, joint by joint in the joints' local frames (rotations by
+/// slerp, translations and scales linearly), eased at both ends.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Preroll {
+    /// Frames holding the bind pose while the garments settle. Default 0.
+    pub settle: u32,
+    /// Frames blending from the bind pose into the clip's first frame. Default 0.
+    pub blend: u32,
+}
+
+impl Preroll {
+    /// Frames in all.
+    pub fn frames(&self) -> u32 {
+        self.settle.saturating_add(self.blend)
+    }
+}
+
+/// Where pre-roll frame `k` (0-based, of `lead_in` before the clip's first frame) stands
+/// between the bind pose (0) and the clip's first frame (1): 0 while settling, then the blend
+/// eased by smoothstep, 1 for a character without a pre-roll.
+pub fn preroll_weight(preroll: Option<Preroll>, lead_in: usize, k: usize) -> f32 {
+    let Some(p) = preroll else {
+        return 1.0;
+    };
+    let blend = p.blend as usize;
+    // The blend ends on the clip's first frame, at `lead_in`.
+    let start = lead_in.saturating_sub(blend);
+    if k < start {
+        return 0.0;
+    }
+    let u = (k - start) as f32 / blend.max(1) as f32;
+    u * u * (3.0 - 2.0 * u)
 }
 
 /// Which of a file's meshes collide: they alone get shell particles and are measured for
@@ -99,6 +143,9 @@ impl Default for CharacterOptions {
             looping: false,
             sequence_fps: None,
             meshes: None,
+            hidden: Vec::new(),
+            preroll: None,
+            lead_in: 0,
         }
     }
 }
@@ -160,6 +207,9 @@ pub struct Character {
     pub triangles: Vec<Vec<[u32; 3]>>,
     /// Vertex positions [m] of every frame.
     pub frames: Vec<Vec<Vec3>>,
+    /// Vertex positions [m] in the bind pose (a sequence's first file), placed like the
+    /// frames: where garments modelled on the character were made.
+    pub bind: Vec<Vec3>,
     /// Frames per second.
     pub fps: f32,
     /// Clip names and durations [s] of the file (empty for sequences and static meshes).
@@ -223,10 +273,19 @@ impl Character {
         }
         let source_fps = options.sequence_fps.unwrap_or(fps);
         let same = triangles.windows(2).all(|w| w[0] == w[1]);
+        let lead = options.lead_in;
+        if options.preroll.is_some() && lead > 0 {
+            warnings.push(format!(
+                "{}: a frame sequence has no joints, so its pre-roll blends vertex by vertex from \
+                 its first file into the first frame (limbs that turn far shrink on the way)",
+                source.display()
+            ));
+        }
         let mut character = Character {
             source: source.to_path_buf(),
             triangles: Vec::new(),
             frames: Vec::new(),
+            bind: stored[0].clone(),
             fps,
             clips: Vec::new(),
             visible,
@@ -234,13 +293,14 @@ impl Character {
             skinned: false,
         };
         // Without a source rate, file k is scene frame k: never more frames than files.
+        let regular = frames.saturating_sub(lead).max(1);
         let count = match options.sequence_fps {
-            Some(_) => frames.max(1),
-            None => frames.max(1).min(stored.len()),
+            Some(_) => regular,
+            None => regular.min(stored.len()),
         };
         let vertices = stored.iter().map(Vec::len).max().unwrap_or(0);
-        check_frames_memory(source, vertices, count)?;
-        for k in 0..count {
+        check_frames_memory(source, vertices, lead + count)?;
+        let sample = |k: usize| -> (Vec<Vec3>, usize) {
             let at = (options.time_offset + k as f32 * options.speed / fps) * source_fps;
             let i = (at.floor().max(0.0) as usize).min(stored.len() - 1);
             let j = (i + 1).min(stored.len() - 1);
@@ -254,6 +314,25 @@ impl Character {
             } else {
                 stored[i].clone()
             };
+            (frame, i)
+        };
+        let (first, first_file) = sample(0);
+        for k in 0..lead {
+            let w = preroll_weight(options.preroll, lead, k);
+            let frame = if same && w < 1.0 {
+                stored[0]
+                    .iter()
+                    .zip(&first)
+                    .map(|(a, b)| a.lerp(*b, w))
+                    .collect()
+            } else {
+                first.clone()
+            };
+            character.frames.push(frame);
+            character.triangles.push(triangles[first_file].clone());
+        }
+        for k in 0..count {
+            let (frame, i) = sample(k);
             character.frames.push(frame);
             character.triangles.push(triangles[i].clone());
         }
@@ -295,32 +374,49 @@ impl Character {
             })?),
             None => None,
         };
+        let hidden;
+        let asset = if options.hidden.is_empty() {
+            asset
+        } else {
+            hidden = asset.clone().without(&options.hidden);
+            &hidden
+        };
         let duration = clip.map_or(0.0, |c| asset.clips[c].duration);
         let transform = options.transform();
-        let count = if clip.is_some() { frames.max(1) } else { 1 };
+        let lead = options.lead_in;
+        let animated = clip.is_some() || (options.preroll.is_some() && lead > 0);
+        let count = if animated { frames.max(lead + 1) } else { 1 };
         check_frames_memory(source, asset.pose(None, 0.0).len(), count)?;
+        let place = |v: Vec<Vec3>| {
+            v.into_iter()
+                .map(|v| transform.transform_point3(v))
+                .collect()
+        };
         let frames = (0..count)
             .map(|k| {
-                let t = options.clip_time(k, fps, duration);
-                asset
-                    .pose(clip, t)
-                    .iter()
-                    .map(|&v| transform.transform_point3(v))
-                    .collect()
+                if k < lead {
+                    let w = preroll_weight(options.preroll, lead, k);
+                    let t = options.clip_time(0, fps, duration);
+                    return place(asset.blended_pose(clip, t, w));
+                }
+                let t = options.clip_time(k - lead, fps, duration);
+                place(asset.pose(clip, t))
             })
             .collect();
         let triangles = asset.colliding_triangles(options.meshes.as_ref(), source)?;
+        let selected = options.meshes.is_some() || !options.hidden.is_empty();
         Ok(Character {
             source: source.to_path_buf(),
             triangles: vec![triangles],
             frames,
+            bind: place(asset.bind_pose()),
             fps,
             clips: asset
                 .clips
                 .iter()
                 .map(|c| (c.name.clone(), c.duration))
                 .collect(),
-            visible: options.meshes.as_ref().map(|_| asset.triangles()),
+            visible: selected.then(|| asset.triangles()),
             warnings: asset.warnings.clone(),
             skinned: asset.meshes.iter().any(|m| !m.bones.is_empty()),
         })

@@ -56,6 +56,31 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
             c.name, c.height_m, c.shell_particles, c.shell_radius, c.shell_cache
         );
     }
+    if let Some(p) = &r.preroll {
+        let worst = p
+            .mesh_penetrations
+            .iter()
+            .map(|m| m.penetration.deepest)
+            .fold(0.0f32, f32::max);
+        println!(
+            "pre-roll: {} of {} frames before frame {} ({}): {:.0} ms, max strain {:.3} %, deepest inside a character's mesh {:.1} mm",
+            p.frames_baked,
+            p.frames,
+            r.frame_start,
+            if p.exported { "exported" } else { "not exported" },
+            p.ms,
+            p.max_strain * 100.0,
+            worst * 1e3
+        );
+    }
+    if let Some(c) = r.clean_start.as_ref().filter(|c| c.moved > 0) {
+        println!(
+            "clean start: {} garment particles moved out of the characters ({} of them inside a mesh), {:.1} mm at the most",
+            c.moved,
+            c.inside_mesh,
+            c.largest_move_m * 1e3
+        );
+    }
     for e in &r.exports {
         println!(
             "wrote {}: {} files, {:.1} MB in {:.0} ms",

@@ -122,11 +122,13 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
 }
 
 /// The shot frames the chunks of `chunk` frames of `scene` stop after (the last one its last
-/// frame); none without chunks.
+/// frame); none without chunks. A pre-roll is chunked with the frames: the first chunk
+/// starts with it, before `frame_start`.
 fn chunks(scene: &Scene, chunk: Option<u32>) -> Vec<u32> {
     let Some(n) = chunk else {
         return Vec::new();
     };
+    let scene = &scene.with_preroll();
     let mut ends: Vec<u32> = (1..)
         .map(|k: u32| k.saturating_mul(n))
         .take_while(|&e| e < scene.frames)

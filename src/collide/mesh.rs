@@ -139,6 +139,17 @@ pub struct Surface<'t> {
     open: Option<Pseudonormals>,
 }
 
+/// The nearest point of a surface to a point ([`Surface::nearest_signed`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    /// Distance to the surface [m], below zero inside.
+    pub distance: f32,
+    /// The nearest point of the surface.
+    pub point: Vec3,
+    /// Unit normal there, pointing out of the body.
+    pub normal: Vec3,
+}
+
 /// Angle-weighted pseudonormals (Bærentzen and Aanæs 2005), for open meshes.
 struct Pseudonormals {
     /// Unit normal of each triangle.
@@ -227,6 +238,65 @@ impl<'t> Surface<'t> {
                 _ => Penetration::default(),
             })
             .reduce(Penetration::default, Penetration::merge)
+    }
+
+    /// For each of `points`, the nearest point of the surface with the signed distance to it
+    /// (below zero inside: by the winding number on a closed mesh, by the pseudonormals on an
+    /// open one) and the unit normal there, pointing out. Exact at any distance (triangles
+    /// beyond [`REACH`] are searched one by one), so for setting up a bake or inspecting one,
+    /// not for every frame.
+    pub fn nearest_signed(&self, points: &[Vec3]) -> Vec<Nearest> {
+        let columns = self.open.is_none().then(|| Columns::new(self));
+        let near = NearGrid::new(self, points);
+        points
+            .par_iter()
+            .with_min_len(256)
+            .map(|&p| {
+                let (d2, q, t, w) = near
+                    .nearest(self, p)
+                    .unwrap_or_else(|| self.nearest_of_all(p));
+                let [a, b, c] = self.triangles()[t].map(|i| self.vertices[i as usize]);
+                let face = (b - a).cross(c - a).normalize_or(Vec3::Y);
+                let inside = match (&columns, &self.open) {
+                    (Some(columns), _) => columns.inside(self, p),
+                    (None, Some(normals)) => {
+                        (p - q).dot(normals.at(&self.topology.triangles, t, w)) < 0.0
+                    }
+                    (None, None) => false,
+                };
+                let distance = d2.sqrt();
+                // Out of the surface: from the point through the surface when it is clear of
+                // it, else the face's normal turned to agree with inside or outside.
+                let towards = if inside { q - p } else { p - q };
+                let normal = if distance > 1e-6 {
+                    towards / distance
+                } else if face.dot(towards) < 0.0 {
+                    -face
+                } else {
+                    face
+                };
+                Nearest {
+                    distance: if inside { -distance } else { distance },
+                    point: q,
+                    normal,
+                }
+            })
+            .collect()
+    }
+
+    /// The nearest point of every triangle to `p`: squared distance, point, triangle, weights.
+    fn nearest_of_all(&self, p: Vec3) -> (f32, Vec3, usize, Vec3) {
+        let mut best = (f32::INFINITY, p, 0, Vec3::X);
+        for (t, tri) in self.triangles().iter().enumerate() {
+            let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
+            let w = closest_barycentric(p, a, b, c);
+            let q = a * w.x + b * w.y + c * w.z;
+            let d2 = p.distance_squared(q);
+            if d2 < best.0 {
+                best = (d2, q, t, w);
+            }
+        }
+        best
     }
 
     /// The welded triangles.

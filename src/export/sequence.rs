@@ -289,8 +289,14 @@ impl BakeMeshes {
         &self,
         index: usize,
     ) -> impl Iterator<Item = (&str, &[Vec3], &[[u32; 3]])> {
+        self.characters_on(index + 1)
+    }
+
+    /// Each character's name, vertices and colliding triangles on its frame `k` (0: where the
+    /// bake starts, before the first frame).
+    pub fn characters_on(&self, k: usize) -> impl Iterator<Item = (&str, &[Vec3], &[[u32; 3]])> {
         self.characters.iter().map(move |c| {
-            let frame = &c.frames[if c.frames.len() == 1 { 0 } else { index + 1 }];
+            let frame = &c.frames[if c.frames.len() == 1 { 0 } else { k }];
             let solid = c.solid.as_deref().unwrap_or(&c.triangles);
             (c.name.as_str(), &frame[..], solid)
         })

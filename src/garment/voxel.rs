@@ -34,9 +34,40 @@ impl SourceMesh {
     /// Corners with the same position and texture coordinate become one vertex (assimp gives
     /// OBJ faces their own corners), so exported normals are smooth across faces.
     pub fn open(path: &Path) -> Result<SourceMesh> {
-        let asset = crate::character::import::Asset::open(path)?;
+        SourceMesh::open_in(path, None, false)
+    }
+
+    /// Reads the meshes of a file that `mesh_name` names (by mesh, node or material name; all
+    /// of them without one), in its bind pose when `bind` (a garment modelled on a character:
+    /// skinned meshes as stored), else in its default node pose.
+    pub fn open_in(path: &Path, mesh_name: Option<&str>, bind: bool) -> Result<SourceMesh> {
+        use crate::character::import::{matches, Asset};
+        let mut asset = Asset::open(path)?;
+        if let Some(name) = mesh_name {
+            if !asset.meshes.iter().any(|m| matches(m, name)) {
+                let names: Vec<String> = asset
+                    .meshes
+                    .iter()
+                    .map(|m| format!("{:?} (node {:?})", m.name, m.node))
+                    .collect();
+                return Err(Error::InvalidField {
+                    file: path.display().to_string(),
+                    field: "mesh_name".into(),
+                    reason: format!(
+                        "{name:?} names no mesh, node or material; the file has {}",
+                        names.join(", ")
+                    ),
+                });
+            }
+            asset.meshes.retain(|m| matches(m, name));
+        }
+        let vertices = if bind {
+            asset.bind_pose()
+        } else {
+            asset.pose(None, 0.0)
+        };
         Ok(SourceMesh::welded(
-            &asset.pose(None, 0.0),
+            &vertices,
             &asset.triangles(),
             asset.uvs().as_deref(),
         ))
@@ -327,14 +358,22 @@ pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<Placed
     let name = g.mesh.clone().unwrap_or_default();
     let source = open_for_scene(
         &scene.base_dir.join(&name),
+        (g.mesh_name.as_deref(), g.on.is_some()),
         file,
         format!("garments[{i}].mesh"),
     )?;
-    let (lo, hi) = source.bounds();
-    let transform = glam::Affine3A::from_translation(Vec3::from(g.position))
-        * glam::Affine3A::from_mat3(super::rotation_of(g.rotation))
-        * glam::Affine3A::from_scale(Vec3::splat(g.scale))
-        * glam::Affine3A::from_translation(-0.5 * (lo + hi));
+    let moved = glam::Affine3A::from_translation(Vec3::from(g.position))
+        * glam::Affine3A::from_mat3(super::rotation_of(g.rotation));
+    let transform = match g.on.as_ref().and_then(|on| character_named(scene, on)) {
+        // Modelled on a character: placed as the character is, then moved by its own fields.
+        Some(c) => moved * glam::Affine3A::from_mat4(c.options().transform()),
+        None => {
+            let (lo, hi) = source.bounds();
+            moved
+                * glam::Affine3A::from_scale(Vec3::splat(g.scale))
+                * glam::Affine3A::from_translation(-0.5 * (lo + hi))
+        }
+    };
     let placed: Vec<Vec3> = source
         .vertices
         .iter()
@@ -399,9 +438,31 @@ pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<Placed
     Ok(mesh)
 }
 
-/// Reads a garment mesh for a scene, naming the scene file and field on failure.
-pub fn open_for_scene(path: &Path, scene_file: &str, field: String) -> Result<SourceMesh> {
-    let mesh = SourceMesh::open(path).map_err(|e| Error::InvalidField {
+/// The character of `scene` called `name`.
+fn character_named<'s>(
+    scene: &'s crate::scene::Scene,
+    name: &str,
+) -> Option<&'s crate::scene::CharacterSpec> {
+    (0..scene.characters.len())
+        .find(|&k| {
+            scene.characters[k]
+                .name
+                .clone()
+                .unwrap_or_else(|| format!("character{k}"))
+                == name
+        })
+        .map(|k| &scene.characters[k])
+}
+
+/// Reads a garment mesh for a scene (the file's meshes that `mesh_name` names, in the bind
+/// pose when `bind`), naming the scene file and field on failure.
+pub fn open_for_scene(
+    path: &Path,
+    (mesh_name, bind): (Option<&str>, bool),
+    scene_file: &str,
+    field: String,
+) -> Result<SourceMesh> {
+    let mesh = SourceMesh::open_in(path, mesh_name, bind).map_err(|e| Error::InvalidField {
         file: scene_file.to_string(),
         field: field.clone(),
         reason: format!("cannot use {}: {e}", path.display()),

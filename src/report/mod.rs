@@ -58,6 +58,15 @@ pub struct Report {
     pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
     /// Springs broken by tearing over the bake.
     pub torn_springs: usize,
+    /// The characters' pre-roll, simulated before the first frame (numbered before
+    /// `frame_start`); absent without one. The per-frame lists and the worst values above
+    /// cover it too.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preroll: Option<PrerollReport>,
+    /// Garment particles moved out of the characters before the first substep (a fresh bake
+    /// with characters; absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clean_start: Option<CleanStart>,
     pub stable: bool,
     pub failure: Option<Failure>,
     /// Set when a signal (SIGINT, SIGTERM) stopped the bake early: the frames before it are
@@ -86,6 +95,35 @@ pub struct Report {
     pub exports: Vec<ExportReport>,
     /// The preview render, if one was made.
     pub preview: Option<crate::render::RenderSummary>,
+}
+
+/// The pre-roll of a bake ([`Report::preroll`]).
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
+pub struct PrerollReport {
+    /// Frames of pre-roll before `frame_start`.
+    pub frames: u32,
+    /// How many of them were baked (fewer when the bake stopped inside it).
+    pub frames_baked: u32,
+    /// Whether they are in the exports (`output.preroll`).
+    pub exported: bool,
+    /// The largest structural strain in any pre-roll frame.
+    pub max_strain: f64,
+    /// Per character shown, the most garment particles inside its mesh at once during the
+    /// pre-roll and the deepest [m].
+    pub mesh_penetrations: Vec<MeshPenetration>,
+    /// Simulation time of the pre-roll frames this run baked [ms].
+    pub ms: f64,
+}
+
+/// What the clean start did ([`Report::clean_start`]).
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct CleanStart {
+    /// Garment particles moved out of a character.
+    pub moved: usize,
+    /// How many of them were inside its mesh (the rest were only inside its shell).
+    pub inside_mesh: usize,
+    /// The largest move [m].
+    pub largest_move_m: f32,
 }
 
 /// A bake stopped by a signal.

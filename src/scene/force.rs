@@ -47,6 +47,15 @@ impl Default for WindSpec {
     }
 }
 
+impl ForceSpec {
+    /// Moves every keyframe `seconds` later (a pre-roll before the shot's first frame).
+    pub fn delay(&mut self, seconds: f32) {
+        if let ForceSpec::Wind(w) = self {
+            w.keyframes.iter_mut().for_each(|k| k.time += seconds);
+        }
+    }
+}
+
 /// The wind's velocity at one time.
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]

@@ -63,6 +63,10 @@ pub struct Scene {
     /// fixed). Not a scene field.
     #[serde(skip)]
     pub iterations_given: bool,
+    /// Pre-roll frames included at the start of `frames` ([`Scene::with_preroll`]): 0 for a
+    /// scene as written. Not a scene field.
+    #[serde(skip)]
+    pub lead_in: u32,
     /// Animated characters the garments collide with, through their particle shells. Default none.
     pub characters: Vec<CharacterSpec>,
     /// Particle–particle collisions: a garment against itself and against other garments (CPU
@@ -140,6 +144,7 @@ impl Default for Scene {
             forces: Vec::new(),
             accuracy: None,
             iterations_given: false,
+            lead_in: 0,
         }
     }
 }
@@ -283,6 +288,15 @@ pub struct GarmentSpec {
     /// Mesh garments: the mesh file (any format assimp reads), relative to the scene's folder.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh: Option<String>,
+    /// Mesh garments: the one mesh of `mesh`'s file to use (by mesh, node or material name);
+    /// a character read from the same file then leaves it out. Default every mesh of the file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_name: Option<String>,
+    /// Mesh garments: the character the mesh was modelled on. The file is then in that
+    /// character's units and bind-pose frame, and the character's `scale`, `up`, `position` and
+    /// `rotation` place it (`position` and `rotation` then move it from there; default none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub on: Option<String>,
     /// Mesh garments: lattice spacing [m]. Default: the longest side of the placed mesh / 31.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub spacing: Option<f32>,
@@ -316,6 +330,8 @@ impl Default for GarmentSpec {
             tear_strain: None,
             tethers: true,
             mesh: None,
+            mesh_name: None,
+            on: None,
             spacing: None,
             scale: 1.0,
             fill: FillMode::Auto,
@@ -453,6 +469,9 @@ pub struct CharacterSpec {
     /// Which of the file's meshes collide: `{"include": [names]}` or `{"exclude": [names]}`,
     /// each a mesh, node or material name. Default all. Exports show the whole character.
     pub meshes: Option<crate::character::MeshSelection>,
+    /// Frames simulated before the scene's first frame: the character holds its bind pose for
+    /// `settle` frames, then blends into the clip's first frame over `blend`. Default none.
+    pub preroll: Option<crate::character::Preroll>,
 }
 
 impl Default for CharacterSpec {
@@ -474,6 +493,7 @@ impl Default for CharacterSpec {
             radius: 0.01,
             friction: 0.5,
             meshes: o.meshes,
+            preroll: o.preroll,
         }
     }
 }
@@ -492,6 +512,8 @@ impl CharacterSpec {
             looping: self.looping,
             sequence_fps: self.sequence_fps,
             meshes: self.meshes.clone(),
+            preroll: self.preroll,
+            ..Default::default()
         }
     }
 }
@@ -520,6 +542,8 @@ pub struct OutputSpec {
     pub wireframe: bool,
     /// Record the total squared error after every solver iteration in the report. Default false.
     pub residuals: bool,
+    /// Also write the characters' pre-roll frames, numbered before `frame_start`. Default false.
+    pub preroll: bool,
 }
 
 /// glTF container choice.
@@ -543,6 +567,7 @@ impl Default for OutputSpec {
             preview_size: [1280, 720],
             wireframe: false,
             residuals: false,
+            preroll: false,
         }
     }
 }
@@ -619,10 +644,22 @@ impl Scene {
         de.end().map_err(|e| top_level_syntax(file, &e))?;
         check_shapes(text, &scene, file)?;
         let mut scene = scene;
-        scene.iterations_given = serde_json::from_str::<serde_json::Value>(text)
-            .ok()
+        let value = serde_json::from_str::<serde_json::Value>(text).ok();
+        scene.iterations_given = value
+            .as_ref()
             .and_then(|v| v.get("solver")?.get("iterations").cloned())
             .is_some();
+        // A garment on a character is placed by the character: its own position defaults to
+        // none rather than a metre up.
+        for (i, g) in scene.garments.iter_mut().enumerate() {
+            let given = value
+                .as_ref()
+                .and_then(|v| v.get("garments")?.get(i)?.get("position").cloned())
+                .is_some();
+            if g.on.is_some() && !given {
+                g.position = [0.0; 3];
+            }
+        }
         validate(&scene, file)?;
         Ok(scene)
     }
@@ -639,6 +676,49 @@ impl Scene {
     /// Length of one simulation step [s].
     pub fn step_seconds(&self) -> f32 {
         1.0 / (self.fps * self.substeps_per_frame() as f32)
+    }
+
+    /// Frames simulated before the first frame: the longest of the characters' pre-rolls.
+    pub fn preroll_frames(&self) -> u32 {
+        self.characters
+            .iter()
+            .filter_map(|c| c.preroll)
+            .map(|p| p.frames())
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The scene a bake simulates: its pre-roll frames ([`Scene::preroll_frames`]) made the
+    /// first frames of the shot, numbered before `frame_start`, with every keyframe (of
+    /// attachments, colliders, wind) as much later, so the first key holds through the
+    /// pre-roll. `lead_in` records how many frames were added. A scene without a pre-roll, or
+    /// one already expanded, is returned as it is.
+    pub fn with_preroll(&self) -> Scene {
+        let lead = self.preroll_frames();
+        let mut scene = self.clone();
+        if lead == 0 || self.lead_in > 0 {
+            return scene;
+        }
+        scene.lead_in = lead;
+        scene.frames += lead;
+        scene.frame_start -= lead;
+        let late = lead as f32 / self.fps;
+        for g in &mut scene.garments {
+            for a in &mut g.attachments {
+                a.keyframes.iter_mut().for_each(|k| k.time += late);
+                // A skin's frame `frame` of the scene is that many frames later.
+                if a.character.is_some() {
+                    a.frame += lead;
+                }
+            }
+        }
+        for c in &mut scene.colliders {
+            c.keyframes.iter_mut().for_each(|k| k.time += late);
+        }
+        for f in &mut scene.forces {
+            f.delay(late);
+        }
+        scene
     }
 
     /// The name of garment `index`, its own or the default `garment<index>`.

@@ -317,6 +317,49 @@ fn check_characters(scene: &Scene) -> std::result::Result<(), Failure> {
             .map_err(|(field, r)| fail(at(field), r))?;
         length(c.radius).map_err(|r| fail(at("radius"), r))?;
         non_negative(c.friction).map_err(|r| fail(at("friction"), r))?;
+        if let Some(p) = c.preroll {
+            check_preroll(scene, p).map_err(|r| fail(at("preroll"), r))?;
+        }
+    }
+    for (i, g) in scene.garments.iter().enumerate() {
+        let Some(on) = &g.on else { continue };
+        let known = (0..scene.characters.len()).any(|k| character_name(scene, k) == *on);
+        if !known {
+            return Err(fail(
+                format!("garments[{i}].on"),
+                format!("no character named {on:?} in this scene"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The name of character `k`, its own or `character<k>`.
+fn character_name(scene: &Scene, k: usize) -> String {
+    scene.characters[k]
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("character{k}"))
+}
+
+/// A pre-roll: some frames, numbered before `frame_start` without going below frame 0.
+fn check_preroll(scene: &Scene, p: crate::character::Preroll) -> std::result::Result<(), String> {
+    if p.frames() == 0 {
+        return Err("needs settle or blend frames (both are 0)".into());
+    }
+    if p.frames() > MAX_FRAMES {
+        return Err(format!(
+            "{} frames is more than drape's limit of {MAX_FRAMES}",
+            p.frames()
+        ));
+    }
+    let lead = scene.preroll_frames();
+    if lead > scene.frame_start {
+        return Err(format!(
+            "its {lead} frames are numbered before the first frame, down to {}: set \
+             frame_start to at least {lead} (shots usually start at 1001)",
+            scene.frame_start as i64 - lead as i64
+        ));
     }
     Ok(())
 }
@@ -335,6 +378,12 @@ fn validate_garment(g: &GarmentSpec) -> std::result::Result<u64, (&'static str, 
         return Err((
             "mesh",
             "mesh, spacing, scale and fill belong to mesh garments (kind \"mesh\")".into(),
+        ));
+    }
+    if g.on.is_some() || g.mesh_name.is_some() {
+        return Err((
+            if g.on.is_some() { "on" } else { "mesh_name" },
+            "on and mesh_name belong to mesh garments (kind \"mesh\"), modelled in a file".into(),
         ));
     }
     check_common(g)?;
@@ -417,6 +466,15 @@ fn validate_mesh_garment(g: &GarmentSpec) -> std::result::Result<(), (&'static s
         length(s).map_err(|r| ("spacing", r))?;
     }
     positive(g.scale).map_err(|r| ("scale", r))?;
+    if g.on.is_some() && g.scale != 1.0 {
+        return Err((
+            "scale",
+            "a garment on a character is in the character's units: its `scale` applies".into(),
+        ));
+    }
+    if g.mesh_name.as_deref() == Some("") {
+        return Err(("mesh_name", "names no mesh (empty)".into()));
+    }
     check_common(g)?;
     if g.hole_radius > 0.0 {
         return Err(("hole_radius", "only sheets have holes, not a mesh".into()));

@@ -88,6 +88,8 @@ pub struct Skin {
     pub name: String,
     pub triangles: Vec<[u32; 3]>,
     pub frames: Vec<Vec<Vec3>>,
+    /// The vertices in the character's bind pose, where garments modelled on it bind.
+    pub bind: Option<Vec<Vec3>>,
 }
 
 impl Skin {
@@ -122,6 +124,8 @@ pub struct Attachments {
 struct PendingBinding {
     character: String,
     frame: u32,
+    /// The garment is `on` this character: bind in its bind pose rather than at `frame`.
+    bind_pose: bool,
     /// Particles (storage order) with their rest positions.
     particles: Vec<(u32, Vec3)>,
 }
@@ -146,6 +150,7 @@ impl Attachments {
                     Some(name) => out.pending.push(PendingBinding {
                         character: name.clone(),
                         frame: a.frame,
+                        bind_pose: spec.on.as_ref() == Some(name),
                         particles: rest,
                     }),
                     None => {
@@ -177,11 +182,13 @@ impl Attachments {
     }
 
     /// Binds the character attachments to `skins`: each particle to the nearest point of the
-    /// nearest triangle at its bind frame.
+    /// nearest triangle at its bind frame, or in the character's bind pose for a garment
+    /// modelled on it (`on`).
     pub fn bind_skins(&mut self, skins: Vec<Skin>) -> Result<(), String> {
         for PendingBinding {
             character: name,
             frame,
+            bind_pose,
             particles,
         } in std::mem::take(&mut self.pending)
         {
@@ -191,7 +198,10 @@ impl Attachments {
                 .ok_or_else(|| format!("character {name:?} has no skin to attach to (its topology changes between frames)"))?;
             let skin = &skins[mesh];
             let f = (frame as usize).min(skin.frames.len() - 1);
-            let vertices = &skin.frames[f];
+            let vertices = match (&skin.bind, bind_pose) {
+                (Some(bind), true) => bind,
+                _ => &skin.frames[f],
+            };
             for (particle, rest) in particles {
                 let mut best = (f32::MAX, [0u32; 3], Vec3::X);
                 for t in &skin.triangles {

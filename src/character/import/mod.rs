@@ -251,16 +251,7 @@ impl Asset {
 
     /// Global transform of every node at time `t` [s] of `clip` (rest pose without a clip).
     pub fn node_transforms(&self, clip: Option<usize>, t: f64) -> Vec<Mat4> {
-        let mut local: Vec<Mat4> = self.nodes.iter().map(|n| n.local).collect();
-        if let Some(c) = clip.and_then(|c| self.clips.get(c)) {
-            for ch in &c.channels {
-                let rest = self.nodes[ch.node].local.to_scale_rotation_translation();
-                let s = sample_vec(&ch.scale, t).unwrap_or(rest.0);
-                let r = sample_quat(&ch.rotation, t).unwrap_or(rest.1);
-                let tr = sample_vec(&ch.translation, t).unwrap_or(rest.2);
-                local[ch.node] = Mat4::from_scale_rotation_translation(s, r, tr);
-            }
-        }
+        let local = self.local_transforms(clip, t);
         let mut global: Vec<Mat4> = Vec::with_capacity(local.len());
         for (i, n) in self.nodes.iter().enumerate() {
             let g = match n.parent {
@@ -275,7 +266,105 @@ impl Asset {
     /// Every posed vertex at time `t` of `clip`: meshes in file order, rigid meshes once per
     /// instance. The order (and count) never changes with time.
     pub fn pose(&self, clip: Option<usize>, t: f64) -> Vec<Vec3> {
-        let global = self.node_transforms(clip, t);
+        self.skin(&self.node_transforms(clip, t))
+    }
+
+    /// The bind pose over [`Asset::pose`]'s vertices: skinned meshes as stored (the pose their
+    /// inverse bind matrices were made in) placed by their node, rigid meshes by their nodes in
+    /// [`Asset::bind_transforms`].
+    /// It can differ from the default node pose (files whose nodes rest at a clip's first
+    /// frame) and from any clip's first frame.
+    pub fn bind_pose(&self) -> Vec<Vec3> {
+        let rest = self.node_transforms(None, 0.0);
+        let bind = self.bind_transforms();
+        let mut out = Vec::new();
+        for m in &self.meshes {
+            if m.bones.is_empty() {
+                for &node in &m.instances {
+                    out.extend(m.vertices.iter().map(|&v| bind[node].transform_point3(v)));
+                }
+            } else {
+                let place = m.instances.first().map_or(Mat4::IDENTITY, |&n| rest[n]);
+                out.extend(m.vertices.iter().map(|&v| place.transform_point3(v)));
+            }
+        }
+        out
+    }
+
+    /// Global transform of every node in the bind pose: a bone where its skin's inverse bind
+    /// matrix puts it (the first skin that names it), any other node below its parent by its
+    /// default local transform.
+    pub fn bind_transforms(&self) -> Vec<Mat4> {
+        let rest = self.node_transforms(None, 0.0);
+        let mut bound: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
+        for m in self.meshes.iter().filter(|m| !m.bones.is_empty()) {
+            let place = m.instances.first().map_or(Mat4::IDENTITY, |&n| rest[n]);
+            for b in &m.bones {
+                bound[b.node].get_or_insert(place * b.offset.inverse());
+            }
+        }
+        let mut global: Vec<Mat4> = Vec::with_capacity(self.nodes.len());
+        for (i, n) in self.nodes.iter().enumerate() {
+            let g = bound[i].unwrap_or_else(|| match n.parent {
+                Some(p) => global[p] * n.local,
+                None => n.local,
+            });
+            global.push(g);
+        }
+        global
+    }
+
+    /// The pose a fraction `w` of the way from the bind pose (0) to time `t` of `clip` (1),
+    /// node by node in their parents' frames: rotations by slerp, translations and scales
+    /// linearly. Exactly [`Asset::bind_pose`] at 0 and [`Asset::pose`] at 1.
+    pub fn blended_pose(&self, clip: Option<usize>, t: f64, w: f32) -> Vec<Vec3> {
+        if w <= 0.0 {
+            return self.bind_pose();
+        }
+        if w >= 1.0 {
+            return self.pose(clip, t);
+        }
+        let bind = self.bind_transforms();
+        let local_bind = |i: usize| match self.nodes[i].parent {
+            Some(p) => bind[p].inverse() * bind[i],
+            None => bind[i],
+        };
+        let target = self.local_transforms(clip, t);
+        let mut global: Vec<Mat4> = Vec::with_capacity(self.nodes.len());
+        for (i, n) in self.nodes.iter().enumerate() {
+            let (s0, r0, t0) = local_bind(i).to_scale_rotation_translation();
+            let (s1, r1, t1) = target[i].to_scale_rotation_translation();
+            let local = Mat4::from_scale_rotation_translation(
+                s0.lerp(s1, w),
+                r0.slerp(r1, w).normalize(),
+                t0.lerp(t1, w),
+            );
+            global.push(match n.parent {
+                Some(p) => global[p] * local,
+                None => local,
+            });
+        }
+        self.skin(&global)
+    }
+
+    /// Every node's transform relative to its parent at time `t` of `clip` (rest without one).
+    fn local_transforms(&self, clip: Option<usize>, t: f64) -> Vec<Mat4> {
+        let mut local: Vec<Mat4> = self.nodes.iter().map(|n| n.local).collect();
+        if let Some(c) = clip.and_then(|c| self.clips.get(c)) {
+            for ch in &c.channels {
+                let rest = self.nodes[ch.node].local.to_scale_rotation_translation();
+                let s = sample_vec(&ch.scale, t).unwrap_or(rest.0);
+                let r = sample_quat(&ch.rotation, t).unwrap_or(rest.1);
+                let tr = sample_vec(&ch.translation, t).unwrap_or(rest.2);
+                local[ch.node] = Mat4::from_scale_rotation_translation(s, r, tr);
+            }
+        }
+        local
+    }
+
+    /// Every vertex with the nodes at `global`: rigid meshes once per instance, skinned ones
+    /// by their bones.
+    fn skin(&self, global: &[Mat4]) -> Vec<Vec3> {
         let mut out = Vec::new();
         for m in &self.meshes {
             if m.bones.is_empty() {
@@ -297,25 +386,10 @@ impl Asset {
         out
     }
 
-    /// The bind pose over [`Asset::pose`]'s vertices: skinned meshes as stored (the pose their
-    /// inverse bind matrices were made in) placed by their node, rigid meshes by the default
-    /// node pose.
-    /// It can differ from the default node pose (files whose nodes rest at a clip's first
-    /// frame) and from any clip's first frame.
-    pub fn bind_pose(&self) -> Vec<Vec3> {
-        let global = self.node_transforms(None, 0.0);
-        let mut out = Vec::new();
-        for m in &self.meshes {
-            if m.bones.is_empty() {
-                for &node in &m.instances {
-                    out.extend(m.vertices.iter().map(|&v| global[node].transform_point3(v)));
-                }
-            } else {
-                let place = m.instances.first().map_or(Mat4::IDENTITY, |&n| global[n]);
-                out.extend(m.vertices.iter().map(|&v| place.transform_point3(v)));
-            }
-        }
-        out
+    /// The asset without the meshes `names` name (by mesh, node or material name).
+    pub fn without(mut self, names: &[String]) -> Asset {
+        self.meshes.retain(|m| !names.iter().any(|n| matches(m, n)));
+        self
     }
 
     /// Each copy of a mesh as laid out in [`Asset::pose`] (rigid meshes once per instance):
