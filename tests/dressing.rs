@@ -216,14 +216,15 @@ fn the_t_pose_top_starts_inside_the_arms_without_a_preroll_and_clear_with_one() 
     .report;
     let warm = run(&top_scene(true), &dir.path().join("warm"), Resume::No, None).report;
     // Without a pre-roll the arms of the first frame hang where the sleeves are not: cloth
-    // starts inside them, and the clean start has to tear it out (measured: 313 particles,
-    // 180 of them inside the mesh, up to 16 cm).
+    // starts inside them, and the clean start has to tear it out (measured: 305 particles,
+    // 209 of them inside the mesh, up to 51 mm; the first frame then stretches a spring 407 %).
     let cold_start = cold.clean_start.clone().unwrap();
     assert!(cold_start.inside_mesh > 100, "{cold_start:?}");
-    assert!(cold_start.largest_move_m > 0.05, "{cold_start:?}");
-    // With one, the top starts on the bind pose it was modelled on: only a few particles the
-    // low-poly armpits come close to move, by millimetres; none goes into the body while the
-    // arms come down, nor in the first frames of the walk.
+    assert!(cold_start.largest_move_m > 0.03, "{cold_start:?}");
+    // With one, the top starts on the bind pose it was modelled on: only particles the
+    // low-poly armpits and shoulders come within a shell radius of move (measured: 136, 6 of
+    // them inside the mesh, 18 mm at the most); none goes into the body while the arms come
+    // down, nor in the first frames of the walk.
     let warm_start = warm.clean_start.clone().unwrap();
     assert!(warm_start.inside_mesh < 10, "{warm_start:?}");
     assert!(warm_start.largest_move_m < 0.025, "{warm_start:?}");
