@@ -64,6 +64,20 @@ impl Backend {
         }
     }
 
+    /// Steps one frame unless `stop` asks between its substeps (then `sim` is as the frame
+    /// started and the result false). The GPU runs a frame in one submission: it is not
+    /// stopped inside one.
+    pub fn step_frame_or_stop(
+        &mut self,
+        sim: &mut Simulation,
+        stop: &dyn Fn() -> bool,
+    ) -> Result<bool> {
+        match self {
+            Backend::Cpu => Ok(sim.step_frame_or_stop(stop)),
+            Backend::Gpu(g) => g.step_frame(sim).map(|()| true),
+        }
+    }
+
     /// Takes `sim`'s model and state afresh (after tearing changed the springs).
     pub fn reload(&mut self, sim: &mut Simulation) -> Result<()> {
         match self {

@@ -33,10 +33,22 @@ pub fn fits_in_memory(bytes: u64) -> Result<(), String> {
         return Ok(());
     }
     Err(format!(
-        "need about {:.1} GB, more than this machine's {:.1} GB of memory",
-        bytes as f64 / 1e9,
-        budget as f64 / 1e9
+        "need about {}, more than this machine's {} of memory",
+        size(bytes),
+        size(budget)
     ))
+}
+
+/// A size in the unit that shows it with three significant figures or so: "34.4 GB",
+/// "512 MB", "12 kB", "80 bytes".
+pub fn size(bytes: u64) -> String {
+    let b = bytes as f64;
+    for (unit, scale) in [("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)] {
+        if b >= scale {
+            return format!("{:.1} {unit}", b / scale);
+        }
+    }
+    format!("{bytes} bytes")
 }
 
 /// Bytes free to this user on the filesystem that holds `path` (or, when it does not exist yet,
@@ -65,9 +77,9 @@ pub fn free_disk(path: &std::path::Path) -> Option<u64> {
 pub fn fits_on_disk(bytes: u64, path: &std::path::Path) -> Result<(), String> {
     match free_disk(path) {
         Some(free) if bytes > free => Err(format!(
-            "would write about {:.1} GB, more than the {:.1} GB free on the disk of {}",
-            bytes as f64 / 1e9,
-            free as f64 / 1e9,
+            "would write about {}, more than the {} free on the disk of {}",
+            size(bytes),
+            size(free),
             path.display()
         )),
         _ => Ok(()),

@@ -903,3 +903,148 @@ fn a_gpu_bake_too_large_for_the_adapter_is_refused_not_crashed() {
     );
     assert!(!d.join("out").exists() && leftovers(d).is_empty(), "{err}");
 }
+
+#[test]
+fn the_last_leftovers_read_as_a_user_would_expect() {
+    // Issue 36 items 4–6.
+    let dir = temp_dir();
+    let d = dir.path();
+    let root = std::env::current_dir().unwrap();
+    let stool = root.join("characters/mannequin/stool.obj");
+    let stool = stool.to_str().unwrap();
+    // 4. `--position X,Y,Z --out FILE` as the help text gives it; negative values too.
+    let out = run(
+        d,
+        &[
+            "shell",
+            stool,
+            "--position",
+            "0,0,0.5",
+            "--rotation",
+            "-90,0,0",
+            "--out",
+            "p.shell",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(d.join("p.shell").is_file());
+    let out = run(
+        d,
+        &["shell", stool, "--position", "0,0", "--out", "q.shell"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("three numbers"), "{}", stderr(&out));
+    // 5. An `--out` in a folder that does not exist is bad input.
+    let out = run(d, &["shell", stool, "--out", "/no/such/dir/x.shell"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--out"), "{}", stderr(&out));
+    // 6. `--clip -1` is a clip name, not a flag; `--frames -1` names the real range.
+    let cesium = root.join("characters/CesiumMan/CesiumMan.glb");
+    let out = run(
+        d,
+        &[
+            "shell",
+            cesium.to_str().unwrap(),
+            "--clip",
+            "-1",
+            "--out",
+            "c.shell",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("no clip \"-1\""), "{}", stderr(&out));
+    let out = run(d, &["bake", "--frames", "-1", "--out", "o"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("from 1 to 1000000"),
+        "{}",
+        stderr(&out)
+    );
+    // An attachment that selects nothing is described as the scene wrote it.
+    std::fs::write(
+        d.join("near.json"),
+        r#"{ "frames": 1, "garments": [{ "resolution": [4, 4],
+             "attachments": [{ "particles": { "near": [5, 5, 5], "radius": 0.1 },
+                               "keyframes": [{ "time": 0 }] }] }] }"#,
+    )
+    .unwrap();
+    let out = run(d, &["bake", "near.json", "--out", "o"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("within 0.1 m of [5, 5, 5]"), "{err}");
+    assert!(!err.contains("NearSelection"), "{err}");
+    // A body a million times too large: no suggestion of a scale that shows as 0, and the
+    // shell refused under `scale`.
+    std::fs::write(
+        d.join("huge.json"),
+        format!(
+            r#"{{ "frames": 1, "garments": [{{ "resolution": [4, 4] }}],
+                 "characters": [{{ "file": {cesium:?}, "scale": 1e6 }}] }}"#,
+            cesium = cesium.display().to_string()
+        ),
+    )
+    .unwrap();
+    let out = run(d, &["bake", "huge.json", "--out", "o"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("characters[0].scale"), "{err}");
+    assert!(
+        !err.contains("0.000000000000") && !err.contains("scale inf"),
+        "{err}"
+    );
+    assert_eq!(drape::limits::size(80), "80 bytes");
+    assert_eq!(drape::limits::size(512_000_000), "512.0 MB");
+}
+
+#[test]
+fn huge_values_are_refused_as_input_like_their_neighbours() {
+    // Issue 36 item 7: what is out of range is bad input (exit 2 naming the field), not a
+    // simulation that turns unstable; a flag takes the rule its scene field takes.
+    let dir = temp_dir();
+    let d = dir.path();
+    for (field, text) in [
+        (
+            "particle_radius",
+            r#"{ "frames": 1, "particle_collisions": true, "particle_radius": 1e30,
+                 "garments": [{ "resolution": [4, 4] }] }"#,
+        ),
+        (
+            "initial_stretch",
+            r#"{ "frames": 1, "garments": [{ "resolution": [4, 4], "initial_stretch": 1e30 }] }"#,
+        ),
+    ] {
+        std::fs::write(d.join("s.json"), text).unwrap();
+        let out = run(d, &["bake", "s.json", "--out", "o"]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{field}: {err}");
+        assert!(err.contains(field), "{err}");
+    }
+    std::fs::write(d.join("far.obj"), "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        d.join("m.json"),
+        r#"{ "frames": 1, "garments": [{ "kind": "mesh", "mesh": "far.obj", "spacing": 0.1 }] }"#,
+    )
+    .unwrap();
+    let out = run(d, &["bake", "m.json", "--out", "o"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("garments[0]"), "{err}");
+    // One rule for null: refused wherever it appears, as for `mass`.
+    for field in ["size", "mass"] {
+        std::fs::write(
+            d.join("n.json"),
+            format!(r#"{{ "garments": [{{ "{field}": null }}] }}"#),
+        )
+        .unwrap();
+        let out = run(d, &["inspect", "n.json"]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{field}: {err}");
+        assert!(err.contains(&format!("garments[0].{field}")), "{err}");
+    }
+    let stool = std::env::current_dir()
+        .unwrap()
+        .join("characters/mannequin/stool.obj");
+    let out = run(d, &["inspect", stool.to_str().unwrap(), "--radius", "1e30"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--radius"), "{}", stderr(&out));
+}

@@ -42,12 +42,19 @@ pub fn load_characters(
         let mut character = Character::load(&path, &options, scene.fps, frames)?;
         let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
         warnings.extend(std::mem::take(&mut character.warnings));
-        warnings.extend(character.size_warning(spec.scale));
+        let odd_size = character.size_warning(spec.scale);
+        // Too many shell particles on a body of implausible size is the scale's fault.
+        let blamed = if odd_size.is_some() {
+            "scale"
+        } else {
+            "radius"
+        };
+        warnings.extend(odd_size);
         character
             .check_shell(spec.radius)
             .map_err(|reason| Error::InvalidField {
                 file: path.display().to_string(),
-                field: format!("characters[{i}].radius"),
+                field: format!("characters[{i}].{blamed}"),
                 reason,
             })?;
         // One shell bound to the skin serves every frame when the topology holds.

@@ -64,7 +64,17 @@ pub fn run(
                 (frame, baked - 1),
                 &mut progress,
             )?,
-            None => backend.step_frame(sim)?,
+            None => {
+                let stop = || super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed) != 0;
+                if !backend.step_frame_or_stop(sim, &stop)? {
+                    // Stopped inside the frame: the simulation is back where it started.
+                    report.interrupted = Some(crate::report::Interruption {
+                        signal: super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed),
+                        after_frame: frame.saturating_sub(1),
+                    });
+                    break;
+                }
+            }
         }
         if let Some(bytes) = backend.uploaded_last_frame() {
             progress.uploaded += bytes;

@@ -65,6 +65,12 @@ pub struct Bake {
     pub out: PathBuf,
     /// Positions after the last baked frame, export order (garments in turn, grid order).
     pub positions: Vec<Vec3>,
+    /// When an interrupted bake was kept beside a complete one (`out` is then the hidden
+    /// `.NAME.partial` folder): the destination, which still holds the complete bake.
+    pub kept: Option<PathBuf>,
+    /// What could not be cleaned up once the report was written (a previous bake that could
+    /// not be removed).
+    pub warnings: Vec<String>,
 }
 
 /// Builds a rayon pool of `threads` workers (all cores when `None`).
@@ -125,11 +131,25 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
             Ok((report, positions))
         });
     let (report, positions) = written.map_err(|e| staging.public_error(e))?;
-    let out = staging.commit()?;
+    // An interrupted bake never replaces a complete one: it waits beside it for `--resume`.
+    if report.interrupted.is_some() && staging.destination_complete() {
+        let kept = options.out.clone();
+        let out = staging.park()?;
+        return Ok(Bake {
+            report,
+            out,
+            positions,
+            kept: Some(kept),
+            warnings: Vec::new(),
+        });
+    }
+    let (out, warnings) = staging.commit()?;
     Ok(Bake {
         report,
         out,
         positions,
+        kept: None,
+        warnings,
     })
 }
 

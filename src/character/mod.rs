@@ -505,9 +505,21 @@ impl Character {
             )
         })
         .unwrap_or_default();
+        // A scale so extreme that it would show as 0 or overflow is not worth suggesting.
+        let fix = if suggested.is_finite() && (1e-9..=1e9).contains(&suggested) {
+            format!(
+                "; scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres)"
+            )
+        } else {
+            String::new()
+        };
+        let tall = if (0.001..1e4).contains(&size) {
+            format!("{size:.3}")
+        } else {
+            format!("{size:.3e}")
+        };
         Some(format!(
-            "{} is {size:.3} m tall at scale {scale}: {what}; \
-             scale {suggested:.digits$} makes it 1.75 m tall (0.01 reads centimetres, 0.001 millimetres){unit}",
+            "{} is {tall} m tall at scale {scale}: {what}{fix}{unit}",
             self.source.display()
         ))
     }

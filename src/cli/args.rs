@@ -93,11 +93,11 @@ pub struct CharacterArgs {
     #[command(flatten)]
     pub look: CharacterLook,
     /// Placement after scale and up axis [m], e.g. `--position 0,0,0.5`.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0], allow_hyphen_values = true)]
-    pub position: Vec<f32>,
-    /// Rotation after scale and up axis, Euler degrees applied X, Y, Z.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0f32, 0.0, 0.0], allow_hyphen_values = true)]
-    pub rotation: Vec<f32>,
+    #[arg(long, value_parser = three_numbers, default_value = "0,0,0", allow_hyphen_values = true)]
+    pub position: [f32; 3],
+    /// Rotation after scale and up axis, Euler degrees applied X, Y, Z, e.g. `--rotation 0,90,0`.
+    #[arg(long, value_parser = three_numbers, default_value = "0,0,0", allow_hyphen_values = true)]
+    pub rotation: [f32; 3],
     /// Clip time at the first frame [s].
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub time_offset: f32,
@@ -119,7 +119,7 @@ pub struct CharacterArgs {
 #[derive(Args, Debug)]
 pub struct CharacterLook {
     /// Character: clip name (or index, e.g. 0 for an unnamed clip); without one, the rest pose.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub clip: Option<String>,
     /// Character: file units to metres.
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
@@ -171,8 +171,8 @@ pub struct SceneArgs {
     /// Solver, overriding the scene's.
     #[arg(long, value_enum)]
     pub solver: Option<SolverArg>,
-    /// Number of frames, overriding the scene's.
-    #[arg(long, allow_hyphen_values = true)]
+    /// Number of frames, overriding the scene's (1 to 1 000 000).
+    #[arg(long, allow_hyphen_values = true, value_parser = frame_count)]
     pub frames: Option<u32>,
     /// The shot's number of the first frame (e.g. 1001), overriding the scene's `frame_start`.
     #[arg(long, allow_hyphen_values = true)]
@@ -331,4 +331,29 @@ pub enum BenchWhat {
     /// and P at a fixed 40 × 20: CSV and SVG in docs/bench, the table in
     /// docs/accuracy-vs-speed.md (`--frames`: fewer).
     Budget,
+}
+
+/// `X,Y,Z`: three numbers in one argument (so `--position 0,0,0.5 --out p.shell` leaves
+/// `--out` alone).
+fn three_numbers(text: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [x, y, z] = parts[..] else {
+        return Err(format!("{text:?} is not three numbers X,Y,Z"));
+    };
+    let number = |t: &str| {
+        t.parse::<f32>()
+            .map_err(|_| format!("{t:?} in {text:?} is not a number"))
+    };
+    Ok([number(x)?, number(y)?, number(z)?])
+}
+
+/// A number of frames: 1 to drape's limit.
+fn frame_count(text: &str) -> Result<u32, String> {
+    let max = drape::scene::MAX_FRAMES;
+    text.trim()
+        .parse::<i64>()
+        .ok()
+        .filter(|n| (1..=max as i64).contains(n))
+        .map(|n| n as u32)
+        .ok_or_else(|| format!("{text:?} is not a number of frames from 1 to {max}"))
 }

@@ -178,6 +178,9 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     stop_on_signals();
     let result = bake(&scene, &options)?;
     let r = &result.report;
+    for w in &result.warnings {
+        eprintln!("drape: warning: {w}");
+    }
     print_summary(r, &result.out);
     if let Some(i) = &r.interrupted {
         let name = match i.signal {
@@ -185,12 +188,29 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
             15 => "SIGTERM",
             _ => "a signal",
         };
+        let (done, destination) = match &result.kept {
+            Some(kept) => (
+                format!(
+                    "the previous complete bake is untouched in {}; this one's {} frames, report.json and a checkpoint are kept beside it in {}",
+                    kept.display(),
+                    r.frames_baked,
+                    result.out.display()
+                ),
+                kept.clone(),
+            ),
+            None => (
+                format!(
+                    "the {} frames baked so far, report.json and a checkpoint are in {}",
+                    r.frames_baked,
+                    result.out.display()
+                ),
+                result.out.clone(),
+            ),
+        };
         eprintln!(
-            "drape: interrupted by {name} after frame {}: the {} frames baked so far, report.json and a checkpoint are in {}; to finish: {}",
+            "drape: interrupted by {name} after frame {}: {done}; to finish: {}",
             i.after_frame,
-            r.frames_baked,
-            result.out.display(),
-            resume_command(&scene_arg, &result.out),
+            resume_command(&scene_arg, &destination),
         );
         return Ok(128 + i.signal);
     }

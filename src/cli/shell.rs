@@ -12,8 +12,8 @@ pub fn options(a: &CharacterArgs) -> CharacterOptions {
         time_offset: a.time_offset,
         speed: a.speed,
         looping: a.r#loop,
-        position: [a.position[0], a.position[1], a.position[2]],
-        rotation: [a.rotation[0], a.rotation[1], a.rotation[2]],
+        position: a.position,
+        rotation: a.rotation,
         ..look_options(&a.look)
     }
 }
@@ -54,12 +54,8 @@ pub fn check_look(look: &CharacterLook) -> drape::Result<()> {
     look_options(look)
         .check()
         .map_err(|(field, reason)| bad_flag(field, reason))?;
-    if !(look.radius.is_finite() && look.radius > 0.0) {
-        return Err(bad_flag(
-            "radius",
-            format!("must be a finite number above zero (got {})", look.radius),
-        ));
-    }
+    // The same rule as a scene's `characters[].radius`.
+    drape::scene::check_length(look.radius).map_err(|reason| bad_flag("radius", reason))?;
     Ok(())
 }
 
@@ -125,6 +121,12 @@ fn check_out(out: &std::path::Path) -> drape::Result<()> {
         "is a folder; give the cache file's path, e.g. walker.shell"
     } else if out.exists() && !ShellCache::is_cache_file(out) {
         "exists and is not a drape shell cache: refusing to overwrite it"
+    } else if out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .is_some_and(|p| !p.is_dir())
+    {
+        "is in a folder that does not exist"
     } else {
         return Ok(());
     };

@@ -12,6 +12,11 @@
 //!   a process killed between the two renames is put back first.
 //! - A destination that cannot be created or written is bad input (exit 2, naming `--out`);
 //!   a write that fails later (a full disk) is a failure while running (exit 1).
+//! - An interrupted bake never replaces a complete one: when the destination holds a finished
+//!   bake, the interrupted one is kept beside it as `.NAME.partial` ([`Staging::park`]), where
+//!   `--resume` finds it; the bake that completes it replaces the destination and removes it.
+//! - A previous bake that cannot be removed once replaced (a read-only file in it) is left as
+//!   `.NAME.old-PID` with a warning naming it.
 
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -68,7 +73,11 @@ impl Staging {
         let parent = resolved
             .parent()
             .expect("resolved destinations have a parent");
-        let (notes, resumable) = clean_stale(parent, &name, &resolved, resuming);
+        let (notes, mut resumable) = clean_stale(parent, &name, &resolved, resuming);
+        let parked = partial_folder(&resolved);
+        if resuming && parked.join("checkpoints").is_dir() {
+            resumable.push(parked);
+        }
         if resolved.exists() || resolved.is_symlink() {
             if let Err(why) = replaceable(&resolved) {
                 return Err(bad_out(format!(
@@ -123,10 +132,12 @@ impl Staging {
         }
     }
 
-    /// Moves the temporary folder to the destination, replacing a previous bake there. Returns
-    /// the destination as the user named it.
-    pub fn commit(mut self) -> Result<PathBuf> {
+    /// Moves the temporary folder to the destination, replacing a previous bake there (and an
+    /// interrupted one parked beside it). Returns the destination as the user named it, and
+    /// warnings about what could not be cleaned up.
+    pub fn commit(mut self) -> Result<(PathBuf, Vec<String>)> {
         let destination = self.destination.clone();
+        let mut warnings = Vec::new();
         if destination.exists() {
             let old = old_folder(&destination, std::process::id());
             std::fs::rename(&destination, &old)
@@ -136,18 +147,75 @@ impl Staging {
                 let _ = std::fs::rename(&old, &destination);
                 return Err(Error::io(&self.shown, "cannot create", e));
             }
-            let _ = std::fs::remove_dir_all(&old);
+            if let Err(e) = std::fs::remove_dir_all(&old) {
+                warnings.push(format!(
+                    "the previous bake could not be removed ({e}): it is left in {}; remove it by hand",
+                    old.display()
+                ));
+            }
         } else {
             std::fs::rename(&self.temp, &destination)
                 .map_err(|e| Error::io(&self.shown, "cannot create", e))?;
         }
         self.committed = true;
-        // What the resumed bake took over from dead runs is in the destination now.
+        // What the resumed bake took over from dead runs is in the destination now, and an
+        // interrupted bake parked beside it is superseded.
         for stale in &self.resumable {
             let _ = std::fs::remove_dir_all(stale);
         }
-        Ok(self.shown.clone())
+        let parked = partial_folder(&destination);
+        if parked.exists() {
+            if let Err(e) = std::fs::remove_dir_all(&parked) {
+                warnings.push(format!(
+                    "the interrupted bake in {} could not be removed ({e})",
+                    parked.display()
+                ));
+            }
+        }
+        Ok((self.shown.clone(), warnings))
     }
+
+    /// True when the destination holds a complete bake: a drape report that says every frame
+    /// asked for was baked, neither interrupted nor stopped at `--until`.
+    pub fn destination_complete(&self) -> bool {
+        let Ok(text) = std::fs::read_to_string(self.destination.join("report.json")) else {
+            return false;
+        };
+        let Ok(report) = serde_json::from_str::<serde_json::Value>(&text) else {
+            return false;
+        };
+        let frames = |k: &str| report.get(k).and_then(serde_json::Value::as_u64);
+        replaceable(&self.destination).is_ok()
+            && frames("frames_baked").is_some()
+            && frames("frames_baked") == frames("frames_requested")
+            && report
+                .get("interrupted")
+                .is_none_or(serde_json::Value::is_null)
+            && report.get("until").is_none_or(serde_json::Value::is_null)
+    }
+
+    /// Keeps an interrupted bake beside the destination as `.NAME.partial` (replacing an
+    /// older one there), leaving the complete bake in the destination as it was. Returns
+    /// where it is.
+    pub fn park(mut self) -> Result<PathBuf> {
+        let parked = partial_folder(&self.destination);
+        if parked.exists() {
+            std::fs::remove_dir_all(&parked)
+                .map_err(|e| Error::io(&parked, "cannot replace", e))?;
+        }
+        std::fs::rename(&self.temp, &parked).map_err(|e| Error::io(&parked, "cannot create", e))?;
+        self.committed = true;
+        Ok(parked)
+    }
+}
+
+/// Where an interrupted bake is kept while a complete one stays in `destination`.
+pub fn partial_folder(destination: &Path) -> PathBuf {
+    let name = destination
+        .file_name()
+        .expect("resolved destinations end in a name")
+        .to_string_lossy();
+    destination.with_file_name(format!(".{name}.partial"))
 }
 
 impl Drop for Staging {
@@ -298,10 +366,13 @@ fn clean_stale(
             kept.push(path);
             continue;
         }
-        if std::fs::remove_dir_all(&path).is_ok() {
-            notes.push(format!(
+        match std::fs::remove_dir_all(&path) {
+            Ok(()) => notes.push(format!(
                 "removed {shown}, left by a run that no longer exists"
-            ));
+            )),
+            Err(e) => notes.push(format!(
+                "{shown}, left by a run that no longer exists, could not be removed ({e}); remove it by hand"
+            )),
         }
     }
     (notes, kept)

@@ -396,6 +396,20 @@ impl Garment {
     }
 }
 
+/// A selection as a scene writes it: `"top_edge"`, `cells [[0, 0]]`, `near [x, y, z] within r m`.
+fn describe(selection: &crate::scene::ParticleSelection) -> String {
+    use crate::scene::ParticleSelection;
+    match selection {
+        ParticleSelection::Region(r) => format!("region {r:?}"),
+        ParticleSelection::Cells(c) if c.is_empty() => "an empty list of cells".to_string(),
+        ParticleSelection::Cells(c) => format!("cells {c:?}"),
+        ParticleSelection::Near(n) => format!(
+            "the particles within {} m of [{}, {}, {}]",
+            n.radius, n.near[0], n.near[1], n.near[2]
+        ),
+    }
+}
+
 /// Refuses an attachment that selects no particle (a region or cells a hole cut away, a `near`
 /// point away from the cloth): it would attach nothing, silently.
 pub fn check_selections(
@@ -409,8 +423,9 @@ pub fn check_selections(
                 file: file.to_string(),
                 field: format!("garments[{i}].attachments[{k}].particles"),
                 reason: format!(
-                    "{:?} selects no particle of garment {:?}",
-                    scene.garments[i].attachments[k].particles, g.name
+                    "{} selects no particle of garment {:?}",
+                    describe(&scene.garments[i].attachments[k].particles),
+                    g.name
                 ),
             });
         }

@@ -380,6 +380,18 @@ pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<Placed
         .map(|&v| transform.transform_point3(v))
         .collect();
     let (plo, phi) = bounds(&placed);
+    if let Some(v) = placed
+        .iter()
+        .find(|v| v.abs().max_element() > crate::scene::validate::MAX_EXTENT)
+    {
+        return Err(fail(
+            "mesh",
+            format!(
+                "{name} has a vertex at {v} once placed, beyond ±{:.0e} m, where single precision cannot resolve a cloth",
+                crate::scene::validate::MAX_EXTENT
+            ),
+        ));
+    }
     let spacing = g
         .spacing
         .unwrap_or_else(|| ((phi - plo).max_element() / 31.0).max(1e-4));

@@ -11,7 +11,10 @@ pub(crate) mod validate;
 
 pub use collider::{ColliderKind, ColliderShape, ColliderSpec};
 pub use force::ForceSpec;
-pub use validate::{bad_name, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_NAME_BYTES, MAX_PARTICLES};
+pub use validate::{
+    bad_name, length as check_length, validate, MAX_COLLIDERS, MAX_FRAMES, MAX_NAME_BYTES,
+    MAX_PARTICLES,
+};
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -643,6 +646,7 @@ impl Scene {
         })?;
         de.end().map_err(|e| top_level_syntax(file, &e))?;
         check_shapes(text, &scene, file)?;
+        check_no_nulls(text, file)?;
         let mut scene = scene;
         let value = serde_json::from_str::<serde_json::Value>(text).ok();
         scene.iterations_given = value
@@ -795,6 +799,50 @@ fn check_shapes(text: &str, scene: &Scene, file: &str) -> Result<()> {
         }),
         None => Ok(()),
     }
+}
+
+/// One rule for `null`: it is never a value. A field left out takes its default; a `null`
+/// would be read as the default by some fields and refused by others (`"size": null` against
+/// `"mass": null`), so every one is refused, naming it.
+fn check_no_nulls(text: &str, file: &str) -> Result<()> {
+    use serde_json::Value;
+    fn find(v: &Value, path: &mut String) -> bool {
+        match v {
+            Value::Null => true,
+            Value::Object(map) => map.iter().any(|(key, v)| {
+                let len = path.len();
+                if !path.is_empty() {
+                    path.push('.');
+                }
+                path.push_str(key);
+                let found = find(v, path);
+                if !found {
+                    path.truncate(len);
+                }
+                found
+            }),
+            Value::Array(items) => items.iter().enumerate().any(|(i, v)| {
+                let len = path.len();
+                path.push_str(&format!("[{i}]"));
+                let found = find(v, path);
+                if !found {
+                    path.truncate(len);
+                }
+                found
+            }),
+            _ => false,
+        }
+    }
+    let value: Value = serde_json::from_str(text).map_err(|e| top_level_syntax(file, &e))?;
+    let mut path = String::new();
+    if find(&value, &mut path) {
+        return Err(Error::InvalidField {
+            file: file.to_string(),
+            field: path,
+            reason: "null is not a value: leave the field out for its default".into(),
+        });
+    }
+    Ok(())
 }
 
 /// A JSON syntax error outside any field (trailing characters, nesting too deep).

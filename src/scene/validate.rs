@@ -120,7 +120,7 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
         }
     }
     if let Some(r) = scene.particle_radius {
-        positive(r).map_err(|r| fail("particle_radius".into(), r))?;
+        length(r).map_err(|r| fail("particle_radius".into(), r))?;
     }
     let [w, h] = scene.output.preview_size;
     if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
@@ -449,6 +449,15 @@ fn check_common(g: &GarmentSpec) -> std::result::Result<(), (&'static str, Strin
     finite3(g.position).map_err(|r| ("position", r))?;
     finite3(g.rotation).map_err(|r| ("rotation", r))?;
     positive(g.initial_stretch).map_err(|r| ("initial_stretch", r))?;
+    if g.initial_stretch > MAX_STRETCH {
+        return Err((
+            "initial_stretch",
+            format!(
+                "{} is more than {MAX_STRETCH}: the cloth would start farther apart than any bake can pull together",
+                g.initial_stretch
+            ),
+        ));
+    }
     non_negative(g.thickness).map_err(|r| ("thickness", r))?;
     positive(g.stiffness.stretch).map_err(|r| ("stiffness.stretch", r))?;
     non_negative(g.stiffness.shear).map_err(|r| ("stiffness.shear", r))?;
@@ -681,8 +690,11 @@ pub(crate) fn finite3(v: [f32; 3]) -> std::result::Result<(), String> {
     }
 }
 
+/// The largest `initial_stretch` (scene E lays its cloth at 5).
+pub const MAX_STRETCH: f32 = 1000.0;
+
 /// A length [m]: above zero and at most [`MAX_EXTENT`].
-fn length(v: f32) -> std::result::Result<(), String> {
+pub fn length(v: f32) -> std::result::Result<(), String> {
     positive(v)?;
     if v > MAX_EXTENT {
         return Err(format!(

@@ -330,7 +330,48 @@ impl Simulation {
             .after_frame(self.team_stats, start.elapsed().as_secs_f64());
     }
 
+    /// Advances one frame unless `stop` says so between its substeps: then the simulation is
+    /// put back where the frame started and false returned. Only frames of more than
+    /// [`LONG_FRAME`] particle-iterations are watched (a shorter one ends within a fraction
+    /// of a second anyway); they are run in pieces of about [`WATCHED_PIECE`] between which
+    /// `stop` is asked, and give the frame [`Simulation::step_frame`] gives to the bit.
+    pub fn step_frame_or_stop(&mut self, stop: &dyn Fn() -> bool) -> bool {
+        if self.frame_work() < LONG_FRAME {
+            self.step_frame();
+            return true;
+        }
+        let before = self.snapshot();
+        self.team_stats = team::RegionStats {
+            threads: self.sharing.threads(),
+            ..team::RegionStats::default()
+        };
+        let start = std::time::Instant::now();
+        let whole = self.step_frame_watched(Some(stop));
+        self.sharing
+            .after_frame(self.team_stats, start.elapsed().as_secs_f64());
+        if !whole {
+            self.restore(&before)
+                .expect("a simulation takes its own snapshot");
+        }
+        whole
+    }
+
+    /// Particle-iterations of one frame: particles × substeps × outer × inner iterations.
+    fn frame_work(&self) -> f64 {
+        let s = &self.solver.settings;
+        self.model.particle_count() as f64
+            * self.substeps as f64
+            * s.iterations as f64
+            * s.inner_iterations.max(1) as f64
+    }
+
     fn step_frame_substeps(&mut self) {
+        self.step_frame_watched(None);
+    }
+
+    /// The frame's substeps, asking `stop` (when given) between pieces of them; false when it
+    /// said stop before the last.
+    fn step_frame_watched(&mut self, stop: Option<&dyn Fn() -> bool>) -> bool {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
@@ -340,7 +381,25 @@ impl Simulation {
             && self.forces.is_none()
             && self.settle.is_none()
         {
-            self.run_substeps(self.substeps, None, false, false);
+            let Some(stop) = stop else {
+                self.run_substeps(self.substeps, None, false, false);
+                return true;
+            };
+            // In pieces: each piece's last `finish` predicts the next piece's first substep,
+            // as one region would.
+            let per_substep = self.frame_work() / self.substeps as f64;
+            let piece = ((WATCHED_PIECE / per_substep) as u32).clamp(1, self.substeps);
+            let mut done = 0;
+            while done < self.substeps {
+                let count = piece.min(self.substeps - done);
+                done += count;
+                self.run_substeps(count, None, done < self.substeps, false);
+                if done < self.substeps && stop() {
+                    self.predicted_at = None;
+                    return false;
+                }
+            }
+            true
         } else {
             // Characters, attachment targets and force fields change every substep: they
             // advance between team regions.
@@ -350,13 +409,20 @@ impl Simulation {
             // A settling frame caps the kinetic energy after each substep, so no `finish`
             // predicts the next substep from velocities the cap is about to scale.
             let settling = self.settle.is_some();
-            for _ in 0..self.substeps {
+            for k in 0..self.substeps {
                 self.substep_in_frame(!settling);
                 self.cap_kinetic_energy();
+                if k + 1 < self.substeps && stop.is_some_and(|stop| stop()) {
+                    self.settle = None;
+                    self.predicted_at = None;
+                    self.focus_checked_at = None;
+                    return false;
+                }
             }
             self.settle = None;
             self.predicted_at = None;
             self.focus_checked_at = None;
+            true
         }
     }
 
@@ -993,6 +1059,13 @@ impl Simulation {
         self.verlet.is_some()
     }
 }
+
+/// Frames of more particle-iterations than this (about 0.2 s on a 2-core machine) can be
+/// stopped between their substeps ([`Simulation::step_frame_or_stop`]).
+pub const LONG_FRAME: f64 = 2e7;
+/// Particle-iterations run between two looks at a stop request in a watched frame (about
+/// 20 ms).
+pub const WATCHED_PIECE: f64 = 2e6;
 
 /// What a settling frame's kinetic energy is capped by ([`Simulation::settle_frame`]): the
 /// energies it started with and the force fields' work until then [J], and the garments' mass
