@@ -33,6 +33,17 @@ def write(name, header, vertices, uvs, faces):
             f.write("f " + " ".join(f"{i + 1}/{i + 1}" for i in face) + "\n")
 
 
+def grid_faces(rows, columns):
+    """Two triangles per cell of a (rows + 1) x (columns + 1) grid of vertices, row by row."""
+    faces = []
+    for r in range(rows):
+        for c in range(columns):
+            a = r * (columns + 1) + c
+            b, d, e = a + 1, a + columns + 1, a + columns + 2
+            faces += [(a, d, e), (a, e, b)]
+    return faces
+
+
 def cushion(segments=32, rings=16, radii=(0.25, 0.08, 0.25)):
     # Poles once each, so every edge is shared by two triangles (closed); the seam shares
     # vertices too (texture coordinates wrap there).
@@ -60,7 +71,7 @@ def cushion(segments=32, rings=16, radii=(0.25, 0.08, 0.25)):
 
 
 def skirt(segments=64, rows=16, waist=(0.34, 0.14), hem=0.45, length=0.55):
-    vertices, uvs, faces = [], [], []
+    vertices, uvs = [], []
     for r in range(rows + 1):
         t = r / rows
         rx = waist[0] + (hem - waist[0]) * t
@@ -69,11 +80,7 @@ def skirt(segments=64, rows=16, waist=(0.34, 0.14), hem=0.45, length=0.55):
             phi = 2.0 * math.pi * s / segments
             vertices.append((rx * math.cos(phi), -length * t, -rz * math.sin(phi)))
             uvs.append((s / segments, 1.0 - t))
-    for r in range(rows):
-        for s in range(segments):
-            a = r * (segments + 1) + s
-            b, c, d = a + 1, a + segments + 1, a + segments + 2
-            faces += [(a, c, d), (a, d, b)]
+    faces = grid_faces(rows, segments)
     write("skirt.obj", "skirt: open elliptic cone frustum, waist 0.68 x 0.28 m, hem 0.90 m",
           vertices, uvs, faces)
 
@@ -140,7 +147,7 @@ def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13):
         return (max(-min(xs), max(xs)), 0.5 * (max(zs) - min(zs)), 0.5 * (max(zs) + min(zs)))
 
     wx, wz, centre = extent(waist_y)
-    vertices, uvs, faces = [], [], []
+    vertices, uvs = [], []
     for r in range(rows + 1):
         t = r / rows
         y = waist_y + (hem_y - waist_y) * t
@@ -151,11 +158,7 @@ def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13):
             phi = 2.0 * math.pi * s / segments
             vertices.append((rx * math.cos(phi), y, centre - rz * math.sin(phi)))
             uvs.append((s / segments, 1.0 - t))
-    for r in range(rows):
-        for s in range(segments):
-            a = r * (segments + 1) + s
-            b, c, d = a + 1, a + segments + 1, a + segments + 2
-            faces += [(a, c, d), (a, d, b)]
+    faces = grid_faces(rows, segments)
     write("cesium_skirt.obj",
           f"cesium_skirt: A-line skirt on CesiumMan's bind pose, waist y {waist_y} m, hem y {hem_y} m",
           vertices, uvs, faces)
@@ -219,7 +222,7 @@ def cesium_cape(columns=15, rows=23, collar=0.07, half_width=0.17, top=1.06, bot
     and legs at its height."""
     body, _ = glb_bind_pose(CESIUM)
     back = [v for v in body if abs(v[0]) <= half_width + 0.03]
-    vertices, uvs, faces = [], [], []
+    vertices, uvs = [], []
     for r in range(rows + 1):
         y = top + (bottom - top) * r / rows
         near = [v[2] for v in back if abs(v[1] - y) <= 0.04] or [v[2] for v in back]
@@ -229,11 +232,7 @@ def cesium_cape(columns=15, rows=23, collar=0.07, half_width=0.17, top=1.06, bot
             x = -half + 2.0 * half * c / columns
             vertices.append((x, y, z0 + curl * x * x))
             uvs.append((c / columns, 1.0 - r / rows))
-    for r in range(rows):
-        for c in range(columns):
-            a = r * (columns + 1) + c
-            b, d, e = a + 1, a + columns + 1, a + columns + 2
-            faces += [(a, d, e), (a, e, b)]
+    faces = grid_faces(rows, columns)
     write("cesium_cape.obj",
           f"cesium_cape: a cape down CesiumMan's bind-pose back, {2 * collar} to {2 * half_width} m wide",
           vertices, uvs, faces)
