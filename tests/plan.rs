@@ -224,3 +224,66 @@ fn a_plan_in_chunks_run_chunk_after_chunk_bakes_the_whole_shot() {
     // Ten frames' OBJ files and their material.
     assert_eq!(files, 11);
 }
+
+#[test]
+fn a_wedge_value_may_be_an_array_and_status_reads_the_reports() {
+    // Issue 35 items 10 and 11: a comma inside brackets belongs to the value; `--status`
+    // lists each variant's state and exits 0 only when every one is done.
+    let dir = common::temp_dir();
+    let d = dir.path();
+    common::write(d, "scene.json", SCENE);
+    let out = common::drape(
+        d,
+        &[
+            "plan",
+            "scene.json",
+            "--wedge",
+            "garments[0].position=[0,1,0],[0,2,0]",
+            "--out",
+            "plan",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let mut names: Vec<String> = std::fs::read_dir(d.join("plan/scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 2, "{names:?}");
+    let scene: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(d.join("plan/scenes").join(&names[1])).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        scene["garments"][0]["position"],
+        serde_json::json!([0, 2, 0])
+    );
+    let status = |d: &Path| common::drape(d, &["plan", "--status", "plan"]);
+    let before = status(d);
+    assert_eq!(before.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&before.stdout).contains("not baked yet"));
+    // The first line only: one variant done, one not.
+    let first = std::fs::read_to_string(d.join("plan/jobs.txt")).unwrap();
+    let line = first.lines().next().unwrap();
+    let run = std::process::Command::new("bash")
+        .args(["-c", line])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", common::stderr(&run));
+    let half = status(d);
+    let text = String::from_utf8_lossy(&half.stdout).to_string();
+    assert_eq!(half.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("done: ") && text.contains("1 of 2 variants done"),
+        "{text}"
+    );
+    run_jobs(d);
+    let all = status(d);
+    assert_eq!(
+        all.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&all.stdout)
+    );
+}

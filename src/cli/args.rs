@@ -33,18 +33,29 @@ pub enum Command {
 #[derive(Args, Debug)]
 pub struct PlanArgs {
     /// Scene file (JSON).
-    pub scene: PathBuf,
-    /// A scene field and the values to bake it with, e.g. `solver.iterations=5,10` or
-    /// `garments[0].mass=0.1,0.2`; several wedges make every combination.
+    #[arg(required_unless_present = "status")]
+    pub scene: Option<PathBuf>,
+    /// A scene field and the values to bake it with, e.g. `solver.iterations=5,10`,
+    /// `garments[0].mass=0.1,0.2` or `garments[0].position=[0,1,0],[0,2,0]` (a comma inside
+    /// brackets, braces or quotes belongs to the value); several wedges make every combination.
     #[arg(long, value_name = "FIELD=V1,V2,...")]
     pub wedge: Vec<String>,
     /// Split each bake into sequential chunks of N frames, each resuming the previous one's
     /// checkpoint (`chunks/chunk_NN.txt`, `jobs.txt` all of them in order).
     #[arg(long, allow_hyphen_values = true)]
     pub chunk: Option<u32>,
+    /// Cores each bake takes (`--threads` in its command, the Slurm recipe's
+    /// `--cpus-per-task`, GNU parallel's bakes at a time). Default 2.
+    #[arg(long, default_value_t = 2, allow_hyphen_values = true)]
+    pub cpus: u32,
     /// Folder to write the plan into (created; must be empty or absent).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required_unless_present = "status")]
+    pub out: Option<PathBuf>,
+    /// Instead of planning: each variant's state in plan folder DIR, from its report.json
+    /// (done, stable, frames baked of requested, interrupted, failed); exits 0 only when every
+    /// variant is done.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["scene", "wedge", "chunk", "out"])]
+    pub status: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]

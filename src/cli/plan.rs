@@ -23,6 +23,15 @@ struct Variant {
     chunks: Vec<u32>,
 }
 
+/// What `drape plan` was asked to plan.
+struct Planned {
+    scene: PathBuf,
+    out: PathBuf,
+    wedge: Vec<String>,
+    chunk: Option<u32>,
+    cpus: u32,
+}
+
 /// One wedge: the field's path and its values.
 struct Wedge {
     field: String,
@@ -30,6 +39,26 @@ struct Wedge {
 }
 
 pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
+    if let Some(dir) = &args.status {
+        return status(dir);
+    }
+    let (Some(scene), Some(out)) = (args.scene.clone(), args.out.clone()) else {
+        unreachable!("clap requires a scene and --out without --status");
+    };
+    if args.cpus == 0 {
+        return Err(Error::InvalidArgument {
+            flag: "--cpus".into(),
+            reason: "must be at least 1".into(),
+        }
+        .into());
+    }
+    let args = Planned {
+        scene,
+        out,
+        wedge: args.wedge,
+        chunk: args.chunk,
+        cpus: args.cpus,
+    };
     if args.chunk == Some(0) {
         return Err(Error::InvalidArgument {
             flag: "--chunk".into(),
@@ -110,13 +139,13 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
             chunks: chunks(&parsed, args.chunk),
         });
     }
-    write_plan(&args.out, &stem, &variants)?;
+    write_plan(&args.out, &stem, &variants, args.cpus)?;
     println!(
-        "planned {} bake{} into {}: run them with `bash {}` (or GNU parallel, a Slurm array, OpenJD: docs/farm.md)",
-        variants.len(),
-        if variants.len() == 1 { "" } else { "s" },
-        args.out.display(),
-        args.out.join("jobs.txt").display()
+        "planned {count} bake{s} into {plan}: run them with `bash {jobs}` (in order, one at a time), `bash {plan}/parallel.sh` (GNU parallel here), `bash {plan}/slurm.sh` (Slurm) or {plan}/job.yaml (OpenJD); `drape plan --status {plan}` says how each went",
+        count = variants.len(),
+        s = if variants.len() == 1 { "" } else { "s" },
+        plan = args.out.display(),
+        jobs = args.out.join("jobs.txt").display()
     );
     Ok(0)
 }
@@ -150,8 +179,8 @@ fn parse_wedge(text: &str) -> Result<Wedge, Error> {
     if field.is_empty() || field.chars().any(char::is_whitespace) {
         return Err(bad("the field is empty or has spaces"));
     }
-    let values: Vec<Value> = values
-        .split(',')
+    let values: Vec<Value> = split_values(values)
+        .into_iter()
         .filter(|v| !v.is_empty())
         .map(|v| serde_json::from_str(v).unwrap_or_else(|_| Value::String(v.to_string())))
         .collect();
@@ -162,6 +191,29 @@ fn parse_wedge(text: &str) -> Result<Wedge, Error> {
         field: field.to_string(),
         values,
     })
+}
+
+/// The values of a wedge, split at the commas outside brackets, braces and quotes, so a value
+/// may be a JSON array or object (`position=[0,1,0],[0,2,0]`).
+fn split_values(text: &str) -> Vec<&str> {
+    let (mut out, mut depth, mut quoted, mut start) = (Vec::new(), 0i32, false, 0);
+    let mut escaped = false;
+    for (i, c) in text.char_indices() {
+        match c {
+            _ if escaped => escaped = false,
+            '\\' if quoted => escaped = true,
+            '"' => quoted = !quoted,
+            '[' | '{' if !quoted => depth += 1,
+            ']' | '}' if !quoted => depth -= 1,
+            ',' if !quoted && depth == 0 => {
+                out.push(&text[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&text[start..]);
+    out
 }
 
 /// Every combination of the wedges' values, the first wedge slowest.
@@ -266,8 +318,9 @@ fn quoted(text: &str) -> String {
     format!("'{}'", text.replace('\'', r"'\''"))
 }
 
-/// Writes `DIR/scenes/*.json`, `DIR/jobs.txt` and `DIR/job.yaml` through a staging folder.
-fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error> {
+/// Writes `DIR/scenes/*.json`, `DIR/jobs.txt`, `DIR/job.yaml` and the recipes through a
+/// staging folder; `cpus`: the cores each bake takes.
+fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result<(), Error> {
     if out.exists()
         && std::fs::read_dir(out)
             .map(|mut d| d.next().is_some())
@@ -290,7 +343,16 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
         let exe = exe.display().to_string();
         let (mut jobs, mut shells) = (String::new(), String::new());
         let chunked = variants.iter().any(|v| !v.chunks.is_empty());
-        let mut chunk_lists: Vec<String> = Vec::new();
+        let chunk_count = variants
+            .iter()
+            .map(|v| v.chunks.len())
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        // Every chunk file has a line per variant, in one order, so task i of every chunk's
+        // array is variant i (Slurm's `aftercorr` pairs them): a variant with fewer chunks (a
+        // wedge on `frames`) gets a line that does nothing.
+        let mut chunk_lists: Vec<String> = vec![String::new(); chunk_count];
         let cache = quoted(&out.join("shells").display().to_string());
         for v in variants {
             let path = scenes.join(format!("{}.json", v.name));
@@ -306,15 +368,19 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
             if v.characters {
                 shells.push_str(&format!("{exe} shell {scene} --out {cache}\n"));
             }
-            let ends: Vec<Option<u32>> = if chunked {
-                v.chunks.iter().copied().map(Some).collect()
-            } else {
-                vec![None]
-            };
-            for (k, until) in ends.into_iter().enumerate() {
+            for (k, list) in chunk_lists.iter_mut().enumerate() {
+                let until = if chunked {
+                    v.chunks.get(k).copied()
+                } else {
+                    None
+                };
+                if chunked && until.is_none() {
+                    list.push_str(&format!(": {} has no chunk {}\n", v.name, k + 1));
+                    continue;
+                }
                 // Every bake resumes: one that a scheduler runs again after a pre-emption
                 // continues from its last checkpoint, and each chunk from the one before.
-                let mut line = format!("{exe} bake {scene} --out {bake} --resume");
+                let mut line = format!("{exe} bake {scene} --out {bake} --resume --threads {cpus}");
                 if v.characters {
                     line.push_str(&format!(" --shell-cache {cache}"));
                 }
@@ -322,10 +388,7 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
                     line.push_str(&format!(" --until {u}"));
                 }
                 line.push('\n');
-                if chunk_lists.len() <= k {
-                    chunk_lists.resize(k + 1, String::new());
-                }
-                chunk_lists[k].push_str(&line);
+                list.push_str(&line);
             }
         }
         // Chunk after chunk: `bash jobs.txt` runs every bake to the end in order.
@@ -347,8 +410,17 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
             std::fs::write(&path, shells).map_err(|e| Error::io(&path, "cannot write", e))?;
         }
         let yaml_path = staging.join("job.yaml");
-        std::fs::write(&yaml_path, openjd(&exe, &out, stem, variants))
+        std::fs::write(&yaml_path, openjd(&exe, &out, stem, variants, cpus))
             .map_err(|e| Error::io(&yaml_path, "cannot write", e))?;
+        for (name, text) in recipes(&exe, cpus, chunk_count) {
+            let path = staging.join(name);
+            std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                let _ = std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755));
+            }
+        }
         if out.exists() {
             std::fs::remove_dir(&out).map_err(|e| Error::io(&out, "cannot replace", e))?;
         }
@@ -363,7 +435,7 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant]) -> Result<(), Error>
 /// The plan as an Open Job Description job template (specification 2023-09): one step whose
 /// tasks range over the variants; with chunks, one step per chunk, each after the one before,
 /// its tasks pairing each variant with the frame its chunk stops after.
-fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
+fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> String {
     let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
     let scene = json(&format!(
         "{}/{{{{Task.Param.Variant}}}}.json",
@@ -407,7 +479,8 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
         json(&format!("drape plan of {stem}"))
     );
     let all: Vec<(&Variant, Option<u32>)> = variants.iter().map(|v| (v, None)).collect();
-    let mut bake_args = format!("'bake', {scene}, '--out', {bake}, '--resume'");
+    let mut bake_args =
+        format!("'bake', {scene}, '--out', {bake}, '--resume', '--threads', '{cpus}'");
     let mut after = None;
     if characters {
         text.push_str(&step(
@@ -435,4 +508,153 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant]) -> String {
         after = Some(name);
     }
     text
+}
+
+/// The plan's recipes, written beside its lists: `run_line.sh FILE N` runs line N of a list
+/// with bash and fails when the file or the line is missing; `slurm.sh` submits the plan to
+/// Slurm (one array per list, each sized from its own file; chunks chained with `aftercorr`,
+/// so one variant's failure stops only its own later chunks); `parallel.sh` runs it here with
+/// GNU parallel, every variant to its end whatever another does. Both end by reporting each
+/// variant's state (`drape plan --status`).
+fn recipes(exe: &str, cpus: u32, chunks: usize) -> Vec<(&'static str, String)> {
+    let drape = quoted(exe);
+    let run_line = r#"#!/bin/bash
+# Runs line N of FILE (a list of this plan: shells.txt, jobs.txt, chunks/chunk_NN.txt) with
+# bash, so a scheduler's task is one line; fails when the file or the line is missing.
+set -euo pipefail
+file=$1 n=$2
+[ -f "$file" ] || { echo "drape plan: no file $file" >&2; exit 2; }
+line=$(sed -n "${n}p" "$file")
+[ -n "$line" ] || { echo "drape plan: $file has no line $n" >&2; exit 2; }
+exec bash -c "$line"
+"#
+    .to_string();
+    let lists = if chunks > 1 {
+        (1..=chunks)
+            .map(|k| format!("chunks/chunk_{k:02}.txt"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    } else {
+        "jobs.txt".to_string()
+    };
+    let slurm = format!(
+        r#"#!/bin/bash
+# Submits this plan to Slurm (run it once, where `sbatch` works; the plan folder must be on
+# storage every node sees). Each bake takes {cpus} CPUs (`drape plan --cpus`). One array per
+# list, sized from that list: the shells first (a bake builds any shell a failed task left
+# out), then the bakes, or each chunk after the same variant's previous one (`aftercorr`:
+# task i after task i, so a variant that fails stops only its own later chunks, which Slurm
+# then cancels instead of leaving them pending). Extra
+# arguments go to every `sbatch` (a partition, an account). Prints the job ids; when they
+# are done, `{drape} plan --status PLAN` says how each variant went.
+set -euo pipefail
+plan=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$plan/logs"
+submit() {{ # LIST DEPENDENCY
+  local n
+  n=$(wc -l < "$plan/$1")
+  sbatch --parsable "${{@:3}}" $2 --cpus-per-task={cpus} --array=1-"$n"     --job-name="drape-$(basename "$1" .txt)" --output="$plan/logs/%x_%a.out"     --wrap "bash '$plan/run_line.sh' '$plan/$1' \$SLURM_ARRAY_TASK_ID"
+}}
+after=""
+if [ -f "$plan/shells.txt" ]; then
+  shells=$(submit shells.txt "" "$@")
+  echo "shells: job $shells"
+  after="--dependency=afterany:$shells"
+fi
+previous=""
+for list in {lists}; do
+  if [ -n "$previous" ]; then after="--dependency=aftercorr:$previous"; fi
+  previous=$(submit "$list" "$after" "$@")
+  echo "$list: job $previous"
+done
+echo "when they are done: {drape} plan --status $plan"
+"#
+    );
+    let parallel = format!(
+        r#"#!/bin/bash
+# Runs this plan on this machine with GNU parallel, as many bakes at a time as {cpus}-CPU
+# bakes fit on its cores (`drape plan --cpus`): the shells first, then the bakes, or chunk
+# after chunk. A bake that fails does not stop the others (a failed variant's later chunks
+# fail again at once); the exit code is that of `drape plan --status`: 0 when every variant
+# is done.
+set -uo pipefail
+plan=$(cd "$(dirname "$0")" && pwd)
+at_once=$(( $(nproc) / {cpus} ))
+[ "$at_once" -ge 1 ] || at_once=1
+if [ -f "$plan/shells.txt" ]; then
+  parallel -j "$at_once" < "$plan/shells.txt" || echo "drape plan: a shell failed; its bakes build it" >&2
+fi
+for list in {lists}; do
+  parallel -j "$at_once" < "$plan/$list" || echo "drape plan: a bake of $list failed" >&2
+done
+exec {drape} plan --status "$plan"
+"#
+    );
+    vec![
+        ("run_line.sh", run_line),
+        ("slurm.sh", slurm),
+        ("parallel.sh", parallel),
+    ]
+}
+
+/// `drape plan --status DIR`: each variant of the plan in `dir` (its `scenes/`) with the state
+/// its `bakes/<name>/report.json` says; 0 when every one is done, else 1.
+fn status(dir: &Path) -> anyhow::Result<i32> {
+    let scenes = dir.join("scenes");
+    let mut names: Vec<String> = std::fs::read_dir(&scenes)
+        .map_err(|e| Error::InvalidArgument {
+            flag: "--status".into(),
+            reason: format!("{} is not a plan folder ({e})", dir.display()),
+        })?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let p = e.path();
+            let stem = p.file_stem()?.to_string_lossy().into_owned();
+            (p.extension()? == "json").then_some(stem)
+        })
+        .collect();
+    names.sort();
+    let mut done = 0;
+    for name in &names {
+        let report = dir.join("bakes").join(name).join("report.json");
+        let state = match std::fs::read_to_string(&report)
+            .ok()
+            .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+        {
+            None => "not baked yet".to_string(),
+            Some(r) => {
+                let (baked, asked) = (&r["frames_baked"], &r["frames_requested"]);
+                let frames = format!("{baked} of {asked} frames");
+                if let Some(f) = r["failure"].as_object() {
+                    format!(
+                        "failed at frame {}: {} ({frames})",
+                        f["frame"],
+                        f["reason"].as_str().unwrap_or("")
+                    )
+                } else if r["interrupted"].is_object() {
+                    format!(
+                        "interrupted after frame {} ({frames}); resumable",
+                        r["interrupted"]["after_frame"]
+                    )
+                } else if r["until"].is_u64() && baked != asked {
+                    format!("in chunks: stopped after frame {} ({frames})", r["until"])
+                } else if baked == asked && r["stable"] == true {
+                    done += 1;
+                    format!(
+                        "done: {frames}, stable, frames_hash {}",
+                        r["frames_hash"].as_str().unwrap_or("")
+                    )
+                } else {
+                    format!("incomplete ({frames})")
+                }
+            }
+        };
+        println!("{name}: {state}");
+    }
+    println!("{done} of {} variants done", names.len());
+    Ok(if done == names.len() && !names.is_empty() {
+        0
+    } else {
+        1
+    })
 }

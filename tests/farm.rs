@@ -1,0 +1,351 @@
+//! The farm recipes on real engines: a wedged plan in chunks, one variant failing on purpose
+//! (ω = 1.95 goes unstable at frame 5), run by `bash plan/slurm.sh` on a single-node Slurm
+//! brought up here (munge and Slurm 22.05 from Debian, `.ci/deps` installs them; the daemons
+//! run from a generated `slurm.conf` in a temporary folder and are stopped by their PIDs) and by
+//! `bash plan/parallel.sh` with GNU parallel. Every stable variant ends with the frames of a
+//! direct bake, the failure is reported by `drape plan --status` (exit 1), and only the failed
+//! variant's later chunks are held back (Slurm 22.05 leaves them pending, "DependencyNeverSatisfied",
+//! even with `--kill-on-invalid-dep=yes`). These are the commands
+//! `docs/farm.md` gives. Where a daemon cannot start the test fails saying why.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command};
+use std::time::{Duration, Instant};
+
+const SCENE: &str = r#"{ "name": "h", "frames": 30, "substeps": 10, "backend": "cpu",
+    "solver": { "iterations": 10 }, "output": { "gltf": "none" },
+    "garments": [{ "name": "cloth", "resolution": [20, 20], "pins": [[0, 0], [-1, 0]] }] }"#;
+
+fn drape(dir: &Path, args: &[&str]) -> std::process::Output {
+    common::drape(dir, args)
+}
+
+fn frames_hash(bake: &Path) -> String {
+    let text = std::fs::read_to_string(bake.join("report.json")).unwrap();
+    let r: serde_json::Value = serde_json::from_str(&text).unwrap();
+    r["frames_hash"].as_str().unwrap().to_string()
+}
+
+/// Plans the wedge in chunks of 10 frames into `dir/NAME` and bakes the stable variants
+/// directly into `dir/direct_<omega>`.
+fn plan(dir: &Path, name: &str) -> PathBuf {
+    common::write(dir, "h.json", SCENE);
+    let out = drape(
+        dir,
+        &[
+            "plan",
+            "h.json",
+            "--wedge",
+            "solver.omega=1.0,1.3,1.95",
+            "--chunk",
+            "10",
+            "--cpus",
+            "1",
+            "--out",
+            name,
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    dir.join(name)
+}
+
+/// What `drape plan --status` says of a finished plan: the two stable variants done with the
+/// frames of direct bakes, ω = 1.95 failed, exit 1.
+fn assert_finished(dir: &Path, plan: &Path) {
+    let status = drape(dir, &["plan", "--status", plan.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&status.stdout).to_string();
+    assert_eq!(status.status.code(), Some(1), "{text}");
+    assert!(text.contains("2 of 3 variants done"), "{text}");
+    assert!(
+        text.contains("h_solver.omega-1.95: failed at frame"),
+        "{text}"
+    );
+    for omega in ["1.0", "1.3"] {
+        let direct = dir.join(format!("direct_{omega}"));
+        if !direct.exists() {
+            let out = drape(
+                dir,
+                &[
+                    "bake",
+                    "h.json",
+                    "--omega",
+                    omega,
+                    "--out",
+                    direct.to_str().unwrap(),
+                ],
+            );
+            assert!(out.status.success(), "{}", common::stderr(&out));
+        }
+        let planned = plan.join(format!("bakes/h_solver.omega-{omega}"));
+        assert_eq!(frames_hash(&planned), frames_hash(&direct), "ω = {omega}");
+        assert!(
+            text.contains(&format!("h_solver.omega-{omega}: done: 30 of 30 frames")),
+            "{text}"
+        );
+    }
+}
+
+/// A single-node Slurm (munged, slurmctld, slurmd) in `root`, stopped when dropped.
+struct Slurm {
+    root: PathBuf,
+    conf: PathBuf,
+    daemons: Vec<(String, PathBuf)>,
+    munge: Option<Child>,
+}
+
+impl Slurm {
+    fn start(root: &Path) -> Slurm {
+        for d in ["state", "spool", "log", "run", "munge"] {
+            std::fs::create_dir_all(root.join(d)).unwrap();
+        }
+        let key = root.join("munge/munge.key");
+        let bytes: Vec<u8> = (0..1024u32)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+            .collect();
+        std::fs::write(&key, bytes).unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o400)).unwrap();
+        let socket = root.join("munge/munge.socket");
+        let munge = Command::new("munged")
+            .args(["--foreground", "--force"])
+            .arg(format!("--key-file={}", key.display()))
+            .arg(format!("--socket={}", socket.display()))
+            .arg(format!(
+                "--pid-file={}",
+                root.join("munge/munged.pid").display()
+            ))
+            .arg(format!(
+                "--log-file={}",
+                root.join("munge/munged.log").display()
+            ))
+            .arg(format!(
+                "--seed-file={}",
+                root.join("munge/munged.seed").display()
+            ))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("munged (apt package munge, .ci/deps) cannot start: {e}"));
+        let host = String::from_utf8(Command::new("hostname").arg("-s").output().unwrap().stdout)
+            .unwrap()
+            .trim()
+            .to_string();
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        // The daemons run as whoever runs the test (root on CI).
+        let user = String::from_utf8(Command::new("id").arg("-un").output().unwrap().stdout)
+            .unwrap()
+            .trim()
+            .to_string();
+        // Ports of this process's own, so a Slurm already on the machine is left alone.
+        let port = 20000 + (std::process::id() % 20000) as u16;
+        let conf = root.join("slurm.conf");
+        let r = root.display();
+        std::fs::write(
+            &conf,
+            format!(
+                "ClusterName=drapetest\nSlurmctldHost={host}\nAuthType=auth/munge\n\
+                 AuthInfo=socket={sock}\nCredType=cred/munge\nSlurmUser={user}\nSlurmdUser={user}\n\
+                 StateSaveLocation={r}/state\nSlurmdSpoolDir={r}/spool\n\
+                 SlurmctldPidFile={r}/run/slurmctld.pid\nSlurmdPidFile={r}/run/slurmd.pid\n\
+                 SlurmctldLogFile={r}/log/slurmctld.log\nSlurmdLogFile={r}/log/slurmd.log\n\
+                 SlurmctldPort={port}\nSlurmdPort={}\nProctrackType=proctrack/linuxproc\n\
+                 TaskPlugin=task/none\nJobAcctGatherType=jobacct_gather/none\n\
+                 SelectType=select/cons_tres\nSelectTypeParameters=CR_Core\nReturnToService=2\n\
+                 MpiDefault=none\nNodeName={host} CPUs={cpus} State=UNKNOWN\n\
+                 PartitionName=main Nodes={host} Default=YES MaxTime=INFINITE State=UP\n",
+                port + 1,
+                sock = socket.display(),
+            ),
+        )
+        .unwrap();
+        let mut slurm = Slurm {
+            root: root.to_path_buf(),
+            conf,
+            daemons: Vec::new(),
+            munge: Some(munge),
+        };
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while !socket.exists() {
+            assert!(
+                Instant::now() < deadline,
+                "munged made no socket: {}",
+                slurm.logs()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        for (daemon, args) in [("slurmctld", vec!["-c"]), ("slurmd", vec![])] {
+            let status = Command::new(daemon)
+                .args(args)
+                .env("SLURM_CONF", &slurm.conf)
+                .status()
+                .unwrap_or_else(|e| {
+                    panic!("{daemon} (apt package slurm-wlm, .ci/deps) cannot start: {e}")
+                });
+            assert!(
+                status.success(),
+                "{daemon} exited {status}: {}",
+                slurm.logs()
+            );
+            slurm
+                .daemons
+                .push((daemon.to_string(), root.join(format!("run/{daemon}.pid"))));
+        }
+        // Until the node takes jobs.
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let out = slurm
+                .command("sinfo")
+                .args(["-h", "-o", "%t"])
+                .output()
+                .unwrap();
+            let state = String::from_utf8_lossy(&out.stdout).trim().to_string();
+            if state == "idle" {
+                break;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "the node is {state:?}, not idle: {}",
+                slurm.logs()
+            );
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        slurm
+    }
+
+    fn command(&self, program: &str) -> Command {
+        let mut c = Command::new(program);
+        c.env("SLURM_CONF", &self.conf);
+        c
+    }
+
+    /// Waits until nothing runs or can still run: every job left is pending on a dependency
+    /// that can never be met (a failed variant's later chunks), for 8 s in a row. Returns them
+    /// (`JOBID_TASK`), cancelled.
+    fn wait_settled(&self, within: Duration) -> Vec<String> {
+        let deadline = Instant::now() + within;
+        let mut settled_since: Option<Instant> = None;
+        loop {
+            let out = self
+                .command("squeue")
+                .args(["-h", "-o", "%i %T %r"])
+                .output()
+                .unwrap();
+            let queue = String::from_utf8_lossy(&out.stdout).trim().to_string();
+            let stuck = queue.lines().all(|l| {
+                let f: Vec<&str> = l.split_whitespace().collect();
+                f.len() == 3 && f[1] == "PENDING" && f[2].starts_with("Dependency")
+            });
+            if stuck {
+                let since = *settled_since.get_or_insert_with(Instant::now);
+                if since.elapsed() > Duration::from_secs(8) {
+                    let left: Vec<String> = queue
+                        .lines()
+                        .filter_map(|l| l.split_whitespace().next())
+                        .map(str::to_string)
+                        .collect();
+                    if !left.is_empty() {
+                        let _ = self.command("scancel").arg("--state=PENDING").status();
+                    }
+                    return left;
+                }
+            } else {
+                settled_since = None;
+            }
+            assert!(Instant::now() < deadline, "jobs still queued:\n{queue}");
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+
+    fn logs(&self) -> String {
+        ["log/slurmctld.log", "log/slurmd.log", "munge/munged.log"]
+            .iter()
+            .map(|f| {
+                let text = std::fs::read_to_string(self.root.join(f)).unwrap_or_default();
+                let tail: Vec<&str> = text.lines().rev().take(5).collect();
+                format!(
+                    "{f}: {}",
+                    tail.into_iter().rev().collect::<Vec<_>>().join(" | ")
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+}
+
+impl Drop for Slurm {
+    fn drop(&mut self) {
+        for (_, pid) in self.daemons.iter().rev() {
+            if let Some(pid) = std::fs::read_to_string(pid)
+                .ok()
+                .and_then(|p| p.trim().parse::<i32>().ok())
+            {
+                // SAFETY: stopping the daemon this test started.
+                unsafe { libc::kill(pid, libc::SIGTERM) };
+            }
+        }
+        if let Some(mut m) = self.munge.take() {
+            let _ = m.kill();
+            let _ = m.wait();
+        }
+    }
+}
+
+#[test]
+fn the_docs_give_the_recipes_this_test_runs() {
+    let farm = std::fs::read_to_string("docs/farm.md").unwrap();
+    for recipe in [
+        "bash plan/slurm.sh",
+        "bash plan/parallel.sh",
+        "drape plan --status plan",
+    ] {
+        assert!(
+            farm.contains(recipe),
+            "docs/farm.md does not give `{recipe}`"
+        );
+    }
+}
+
+#[test]
+fn a_wedged_chunked_plan_runs_on_a_real_slurm() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    let slurm = Slurm::start(&d.join("slurm"));
+    let plan = plan(d, "plan");
+    let started = Instant::now();
+    let out = slurm
+        .command("bash")
+        .arg(plan.join("slurm.sh"))
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let stuck = slurm.wait_settled(Duration::from_secs(300));
+    eprintln!(
+        "Slurm ran the plan in {:.1} s (settled 8 s before); left pending: {stuck:?}",
+        started.elapsed().as_secs_f64()
+    );
+    assert_finished(d, &plan);
+    // Every chunk of the stable variants ran (task logs: the 3 first chunks, then 2 and 2);
+    // the failed variant's later chunks (task 3 of chunks 2 and 3) never could.
+    let logs = std::fs::read_dir(plan.join("logs")).unwrap().count();
+    assert_eq!(logs, 3 + 2 + 2);
+    assert_eq!(stuck.len(), 2, "{stuck:?}");
+    assert!(stuck.iter().all(|j| j.ends_with("_3")), "{stuck:?}");
+}
+
+#[test]
+fn a_wedged_chunked_plan_runs_with_gnu_parallel() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    let plan = plan(d, "plan");
+    let out = Command::new("bash")
+        .arg(plan.join("parallel.sh"))
+        .current_dir(d)
+        .output()
+        .unwrap_or_else(|e| panic!("bash cannot run: {e}"));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}{}", common::stderr(&out));
+    assert_finished(d, &plan);
+}
