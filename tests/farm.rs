@@ -349,3 +349,60 @@ fn a_wedged_chunked_plan_runs_with_gnu_parallel() {
     assert_eq!(out.status.code(), Some(1), "{text}{}", common::stderr(&out));
     assert_finished(d, &plan);
 }
+
+#[test]
+fn a_chunked_plan_runs_with_the_openjd_runner_after_the_plan_moved() {
+    // `openjd run` (openjd-cli 0.8.0, which `.ci/deps` installs into target/openjd) takes each
+    // chunk step of one variant in turn, with its `Until`; the plan's paths go through the job
+    // parameter `PlanDir` (by default the template's folder), so a plan moved after planning
+    // (as a worker that sees it at another path would) still runs, to a direct bake's frames.
+    let openjd = std::env::current_dir()
+        .unwrap()
+        .join("target/openjd/bin/openjd");
+    assert!(
+        openjd.is_file(),
+        "{} is missing: run .ci/deps (it installs openjd-cli from PyPI)",
+        openjd.display()
+    );
+    let dir = common::temp_dir();
+    let d = dir.path();
+    plan(d, "planned");
+    std::fs::rename(d.join("planned"), d.join("moved")).unwrap();
+    let template = d.join("moved/job.yaml");
+    let check = Command::new(&openjd)
+        .arg("check")
+        .arg(&template)
+        .output()
+        .unwrap();
+    assert!(check.status.success(), "{}", common::stderr(&check));
+    for (k, until) in [(1, 10), (2, 20), (3, 30)] {
+        let out = Command::new(&openjd)
+            .arg("run")
+            .arg(&template)
+            .args(["--step", &format!("bake_{k:02}")])
+            .args(["--task-param", "Variant=h_solver.omega-1.0"])
+            .args(["--task-param", &format!("Until={until}")])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && !text.contains("ERROR"),
+            "chunk {k}: {text}"
+        );
+    }
+    let direct = d.join("direct_1.0");
+    let out = drape(
+        d,
+        &[
+            "bake",
+            "h.json",
+            "--omega",
+            "1.0",
+            "--out",
+            direct.to_str().unwrap(),
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let planned = d.join("moved/bakes/h_solver.omega-1.0");
+    assert_eq!(frames_hash(&planned), frames_hash(&direct));
+}

@@ -4,7 +4,10 @@
 //! which GNU parallel, a Slurm array or `bash` runs as it is). With characters, a first step
 //! (`DIR/shells.txt`, `drape shell SCENE --out DIR/shells`) builds their shells into one cache
 //! folder that every bake then reuses (`--shell-cache`). `DIR/job.yaml` is the same plan as an
-//! Open Job Description template. Every variant is validated before anything is written.
+//! Open Job Description template (its paths through the job parameter `PlanDir`), and the
+//! recipes `DIR/parallel.sh` and `DIR/slurm.sh` run it with GNU parallel or on Slurm (each task
+//! a line, through `DIR/run_line.sh`). `drape plan --status DIR` reads how every variant went.
+//! Every variant is validated before anything is written.
 
 use super::args::PlanArgs;
 use drape::scene::Scene;
@@ -437,15 +440,13 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
 /// its tasks pairing each variant with the frame its chunk stops after.
 fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> String {
     let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
-    let scene = json(&format!(
-        "{}/{{{{Task.Param.Variant}}}}.json",
-        out.join("scenes").display()
-    ));
-    let bake = json(&format!(
-        "{}/{{{{Task.Param.Variant}}}}",
-        out.join("bakes").display()
-    ));
-    let cache = json(&out.join("shells").display().to_string());
+    // Paths through the job parameters: `PlanDir` (PATH, by default the template's own folder,
+    // which a scheduler's path mapping remaps for a worker that sees the plan elsewhere) and
+    // `Drape` (the executable on the workers; a STRING, since OpenJD wants a PATH's default
+    // relative to the template).
+    let scene = json("{{Param.PlanDir}}/scenes/{{Task.Param.Variant}}.json");
+    let bake = json("{{Param.PlanDir}}/bakes/{{Task.Param.Variant}}");
+    let cache = json("{{Param.PlanDir}}/shells");
     let characters = variants.iter().any(|v| v.characters);
     // A step over `tasks` (variant, and the frame its chunk stops after) running `args`, after
     // `after` when given.
@@ -470,14 +471,18 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant], cpus: u32) ->
         }
         s.push_str(&format!(
             "  script:\n    actions:\n      onRun:\n        command: {}\n        args: [{args}]\n",
-            json(exe)
+            json("{{Param.Drape}}")
         ));
         s
     };
     let mut text = format!(
-        "specificationVersion: 'jobtemplate-2023-09'\nname: {}\nsteps:\n",
-        json(&format!("drape plan of {stem}"))
+        "specificationVersion: 'jobtemplate-2023-09'\nname: {}\nparameterDefinitions:\n\
+         - name: PlanDir\n  type: PATH\n  objectType: DIRECTORY\n  dataFlow: INOUT\n  default: \".\"\n\
+         - name: Drape\n  type: STRING\n  default: {}\nsteps:\n",
+        json(&format!("drape plan of {stem}")),
+        json(exe)
     );
+    let _ = out;
     let all: Vec<(&Variant, Option<u32>)> = variants.iter().map(|v| (v, None)).collect();
     let mut bake_args =
         format!("'bake', {scene}, '--out', {bake}, '--resume', '--threads', '{cpus}'");
