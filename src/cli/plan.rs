@@ -413,7 +413,7 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
             std::fs::write(&path, shells).map_err(|e| Error::io(&path, "cannot write", e))?;
         }
         let yaml_path = staging.join("job.yaml");
-        std::fs::write(&yaml_path, openjd(&exe, &out, stem, variants, cpus))
+        std::fs::write(&yaml_path, openjd(&exe, stem, variants, cpus))
             .map_err(|e| Error::io(&yaml_path, "cannot write", e))?;
         for (name, text) in recipes(&exe, cpus, chunk_count) {
             let path = staging.join(name);
@@ -438,7 +438,7 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
 /// The plan as an Open Job Description job template (specification 2023-09): one step whose
 /// tasks range over the variants; with chunks, one step per chunk, each after the one before,
 /// its tasks pairing each variant with the frame its chunk stops after.
-fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> String {
+fn openjd(exe: &str, stem: &str, variants: &[Variant], cpus: u32) -> String {
     let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
     // Paths through the job parameters: `PlanDir` (PATH, by default the template's own folder,
     // which a scheduler's path mapping remaps for a worker that sees the plan elsewhere) and
@@ -482,7 +482,6 @@ fn openjd(exe: &str, out: &Path, stem: &str, variants: &[Variant], cpus: u32) ->
         json(&format!("drape plan of {stem}")),
         json(exe)
     );
-    let _ = out;
     let all: Vec<(&Variant, Option<u32>)> = variants.iter().map(|v| (v, None)).collect();
     let mut bake_args =
         format!("'bake', {scene}, '--out', {bake}, '--resume', '--threads', '{cpus}'");

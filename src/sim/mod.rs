@@ -320,14 +320,7 @@ impl Simulation {
 
     /// Advances one frame (all substeps).
     pub fn step_frame(&mut self) {
-        self.team_stats = team::RegionStats {
-            threads: self.sharing.threads(),
-            ..team::RegionStats::default()
-        };
-        let start = std::time::Instant::now();
-        self.step_frame_substeps();
-        self.sharing
-            .after_frame(self.team_stats, start.elapsed().as_secs_f64());
+        self.step_frame_shared(None);
     }
 
     /// Advances one frame unless `stop` says so between its substeps: then the simulation is
@@ -341,18 +334,25 @@ impl Simulation {
             return true;
         }
         let before = self.snapshot();
+        let whole = self.step_frame_shared(Some(stop));
+        if !whole {
+            self.restore(&before)
+                .expect("a simulation takes its own snapshot");
+        }
+        whole
+    }
+
+    /// One frame's substeps ([`Simulation::step_frame_watched`]) with the team's statistics
+    /// gathered for the frame and handed to `sharing` after it.
+    fn step_frame_shared(&mut self, stop: Option<&dyn Fn() -> bool>) -> bool {
         self.team_stats = team::RegionStats {
             threads: self.sharing.threads(),
             ..team::RegionStats::default()
         };
         let start = std::time::Instant::now();
-        let whole = self.step_frame_watched(Some(stop));
+        let whole = self.step_frame_watched(stop);
         self.sharing
             .after_frame(self.team_stats, start.elapsed().as_secs_f64());
-        if !whole {
-            self.restore(&before)
-                .expect("a simulation takes its own snapshot");
-        }
         whole
     }
 
@@ -363,10 +363,6 @@ impl Simulation {
             * self.substeps as f64
             * s.iterations as f64
             * s.inner_iterations.max(1) as f64
-    }
-
-    fn step_frame_substeps(&mut self) {
-        self.step_frame_watched(None);
     }
 
     /// The frame's substeps, asking `stop` (when given) between pieces of them; false when it
