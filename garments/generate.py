@@ -136,14 +136,22 @@ def glb_bind_pose(path):
 def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13):
     """An A-line skirt from CesiumMan's waist to his knees: each ring an ellipse about the
     torso's centre whose radii grow linearly by `flare` from the waist's, and never come
-    closer than CLEARANCE to the body's extent in that ring's slab (arms left out: in the bind
-    pose they reach down beside the hips, far outside)."""
-    body, _ = glb_bind_pose(CESIUM)
-    torso = [v for v in body if abs(v[0]) < 0.16]
+    closer than CLEARANCE to the body's cross-section at that ring's height (the bind-pose
+    triangles cut by the ring's plane within |x| < 0.16 m: the torso and the legs; in the bind
+    pose the arms reach down beside the hips further out)."""
+    body, triangles = glb_bind_pose(CESIUM)
 
-    def extent(y, half=0.03):
-        near = [v for v in torso if abs(v[1] - y) <= half] or torso
-        xs, zs = [v[0] for v in near], [v[2] for v in near]
+    def extent(y):
+        cut = []
+        for t in triangles:
+            p = [body[i] for i in t]
+            for a, b in ((p[0], p[1]), (p[1], p[2]), (p[2], p[0])):
+                if (a[1] - y) * (b[1] - y) < 0.0:
+                    w = (y - a[1]) / (b[1] - a[1])
+                    x, z = a[0] + w * (b[0] - a[0]), a[2] + w * (b[2] - a[2])
+                    if abs(x) < 0.16:
+                        cut.append((x, z))
+        xs, zs = [c[0] for c in cut], [c[1] for c in cut]
         return (max(-min(xs), max(xs)), 0.5 * (max(zs) - min(zs)), 0.5 * (max(zs) + min(zs)))
 
     wx, wz, centre = extent(waist_y)

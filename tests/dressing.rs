@@ -3,7 +3,7 @@
 //! a character (`on`) lines up with it however the character is placed; the T-pose top starts
 //! inside CesiumMan's arms without a pre-roll and clear of them with one; a bake resumed inside
 //! the pre-roll is bit-identical to one that never stopped; the exports leave the pre-roll out
-//! unless asked.
+//! unless asked, and `drape render` numbers an exported pre-roll's images as the bake did.
 
 mod common;
 
@@ -298,6 +298,35 @@ fn a_bake_resumed_inside_the_preroll_is_the_one_that_never_stopped() {
         );
     }
     assert!(!dir.path().join("all/obj/cape_0984.obj").exists());
+}
+
+#[test]
+fn drape_render_numbers_an_exported_preroll_as_the_bake_did() {
+    if common::gpu_context().is_none() {
+        return;
+    }
+    let dir = common::temp_dir();
+    let shown = cape_scene(2, 0, r#"{ "obj": false, "preroll": true }"#);
+    assert!(
+        run(&shown, &dir.path().join("out"), Resume::No, None)
+            .report
+            .stable
+    );
+    let out = common::drape(dir.path(), &["render", "out", "--size", "64x36"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let preview = dir.path().join("out/preview");
+    for k in [985, 1000, 1001, 1002] {
+        assert!(
+            preview.join(format!("frame_{k:04}.png")).is_file(),
+            "frame {k}"
+        );
+    }
+    for k in [984, 1003] {
+        assert!(
+            !preview.join(format!("frame_{k:04}.png")).exists(),
+            "frame {k}"
+        );
+    }
 }
 
 #[test]

@@ -40,11 +40,13 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
         let skins = character_meshes
             .iter()
             .zip(binds)
-            .map(|(m, bind)| Skin {
-                name: m.name.clone(),
-                triangles: m.triangles.clone(),
-                frames: m.frames.clone(),
-                bind: Some(bind),
+            .map(|(m, bind)| {
+                Skin::new(
+                    m.name.clone(),
+                    m.triangles.clone(),
+                    m.frames.clone(),
+                    Some(bind),
+                )
             })
             .collect();
         sim.attachments

@@ -27,11 +27,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<i32> {
         .into());
     };
     let (meshes, _fps) = gltf::read(&dir.join(file))?;
-    // The shot's first frame, as the bake's report says (1 for bakes before frame ranges).
-    let first_frame = report
+    // The glTF's first frame, as the bake's report says (1 for bakes before frame ranges): the
+    // shot's first, or the pre-roll's when the bake exported it (numbered before the shot's).
+    let frame_start = report
         .get("frame_start")
         .and_then(|f| f.as_u64())
         .map_or(1, |f| f as u32);
+    let preroll = &report["preroll"];
+    let shown_preroll = (preroll["exported"].as_bool() == Some(true))
+        .then(|| preroll["frames"].as_u64())
+        .flatten()
+        .unwrap_or(0) as u32;
+    let first_frame = frame_start.saturating_sub(shown_preroll);
     let staging = dir.join(".preview.partial");
     let _ = std::fs::remove_dir_all(&staging);
     std::fs::create_dir(&staging).map_err(|e| Error::io(&staging, "cannot create", e))?;

@@ -361,7 +361,7 @@ pub struct AttachmentSpec {
     /// like `pins`.
     pub particles: ParticleSelection,
     /// Follow this character's skin: each particle is bound to the nearest point of its surface
-    /// at frame `frame` and keeps its offset in that triangle's frame.
+    /// at frame `frame` and keeps its offset in the skin's frame there (its smooth normal).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub character: Option<String>,
     /// Character frame to bind at. Default 0.

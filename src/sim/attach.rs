@@ -5,9 +5,18 @@
 //! Targets: a keyframed rigid motion (translation and rotation about a pivot, linear between
 //! keys: a curtain rail sliding, a box turning), or a point on a character's skin: at the bind
 //! frame the particle is tied to the nearest point of the nearest triangle by barycentric
-//! coordinates, and its offset from that point is kept in the triangle's own frame (edge,
-//! normal), so it rides the skin as the triangle moves and turns.
+//! coordinates, and its offset from that point is kept in the skin's frame there (the smooth
+//! normal interpolated from the welded vertices' normals, and the triangle's first edge
+//! turned into the tangent plane), so it rides the skin as the skin moves and turns.
+//!
+//! The smooth normal, not the triangle's own: a waistband sits a few centimetres off the skin,
+//! and two neighbouring particles bound to the two triangles of a crease (a low-poly hip) would
+//! swing apart with the triangles' normals as the crease folds: two waistband particles of a
+//! skirt on CesiumMan's walk came 150 % further apart than at rest with facet frames, 51 % with
+//! smooth ones. The smooth normal is continuous across the crease, so neighbours stay
+//! neighbours.
 
+use crate::character::shell::{welded_normals, Weld};
 use crate::garment::Garment;
 use crate::scene::{GarmentSpec, KeyframeSpec};
 use glam::{EulerRot, Quat, Vec3};
@@ -17,7 +26,7 @@ use glam::{EulerRot, Quat, Vec3};
 pub enum Target {
     /// The particle's rest position carried by track `track`.
     Keyframed { track: usize, rest: Vec3 },
-    /// A point of mesh `mesh`'s triangle `triangle` plus an offset in that triangle's frame.
+    /// A point of mesh `mesh`'s triangle `triangle` plus an offset in the skin's frame there.
     Surface {
         mesh: usize,
         triangle: [u32; 3],
@@ -90,23 +99,67 @@ pub struct Skin {
     pub frames: Vec<Vec<Vec3>>,
     /// The vertices in the character's bind pose, where garments modelled on it bind.
     pub bind: Option<Vec<Vec3>>,
+    /// Each frame's smooth vertex normals (the first frame's welding), for the targets' frames.
+    normals: Vec<Vec<Vec3>>,
+    weld: Weld,
 }
 
 impl Skin {
-    /// Vertex `v` at fractional frame `f` (linear between frames, held after the last).
-    fn vertex(&self, v: u32, f: f32) -> Vec3 {
+    /// A skin of `triangles` over `frames`, bound in `bind` when garments are modelled on it.
+    pub fn new(
+        name: String,
+        triangles: Vec<[u32; 3]>,
+        frames: Vec<Vec<Vec3>>,
+        bind: Option<Vec<Vec3>>,
+    ) -> Skin {
+        let weld = frames.first().map(|f| Weld::of(f)).unwrap_or_default();
+        let normals = (frames.iter())
+            .map(|f| welded_normals(f, &triangles, &weld))
+            .collect();
+        Skin {
+            name,
+            triangles,
+            frames,
+            bind,
+            normals,
+            weld,
+        }
+    }
+
+    /// Frames `k` and `j` around fractional frame `f` and the weight of `j` (held after the
+    /// last).
+    fn span(&self, f: f32) -> (usize, usize, f32) {
         let k = (f.floor().max(0.0) as usize).min(self.frames.len() - 1);
         let j = (k + 1).min(self.frames.len() - 1);
-        let w = (f - k as f32).clamp(0.0, 1.0);
-        self.frames[k][v as usize].lerp(self.frames[j][v as usize], w)
+        (k, j, (f - k as f32).clamp(0.0, 1.0))
+    }
+
+    /// The point at `bary` on `triangle` and the skin's frame there at fractional frame `f`.
+    fn surface(&self, triangle: [u32; 3], bary: Vec3, f: f32) -> (Vec3, [Vec3; 3]) {
+        let (k, j, w) = self.span(f);
+        let at =
+            |frames: &[Vec<Vec3>], v: u32| frames[k][v as usize].lerp(frames[j][v as usize], w);
+        let corners = triangle.map(|v| at(&self.frames, v));
+        let normals = triangle.map(|v| at(&self.normals, v));
+        surface_frame(corners, normals, bary)
+    }
+
+    /// The smooth normals of `vertices` (the bind pose or one frame) with the skin's welding.
+    fn normals_of(&self, vertices: &[Vec3]) -> Vec<Vec3> {
+        welded_normals(vertices, &self.triangles, &self.weld)
     }
 }
 
-/// An orthonormal frame of a triangle: first edge, in-plane perpendicular, normal.
-fn triangle_frame(a: Vec3, b: Vec3, c: Vec3) -> [Vec3; 3] {
-    let e = (b - a).normalize_or(Vec3::X);
-    let n = (b - a).cross(c - a).normalize_or(Vec3::Y);
-    [e, n.cross(e), n]
+/// The point at `bary` of a triangle with `corners` and an orthonormal frame there: the first
+/// edge turned into the tangent plane, the in-plane perpendicular, and the normal interpolated
+/// from the corners' smooth `normals` (the facet's where they cancel).
+fn surface_frame(corners: [Vec3; 3], normals: [Vec3; 3], bary: Vec3) -> (Vec3, [Vec3; 3]) {
+    let [a, b, c] = corners;
+    let facet = (b - a).cross(c - a).normalize_or(Vec3::Y);
+    let n = (normals[0] * bary.x + normals[1] * bary.y + normals[2] * bary.z).normalize_or(facet);
+    let edge = b - a;
+    let e = (edge - n * edge.dot(n)).normalize_or(n.any_orthonormal_vector());
+    (a * bary.x + b * bary.y + c * bary.z, [e, n.cross(e), n])
 }
 
 /// Every attachment of a simulation, with the motions and skins they follow.
@@ -202,20 +255,13 @@ impl Attachments {
                 (Some(bind), true) => bind,
                 _ => &skin.frames[f],
             };
+            let normals = skin.normals_of(vertices);
             for (particle, rest) in particles {
-                let mut best = (f32::MAX, [0u32; 3], Vec3::X);
-                for t in &skin.triangles {
-                    let [a, b, c] = t.map(|i| vertices[i as usize]);
-                    let bary = crate::collide::mesh::closest_barycentric(rest, a, b, c);
-                    let d = (a * bary.x + b * bary.y + c * bary.z).distance_squared(rest);
-                    if d < best.0 {
-                        best = (d, *t, bary);
-                    }
-                }
-                let (_, triangle, bary) = best;
-                let [a, b, c] = triangle.map(|i| vertices[i as usize]);
-                let frame = triangle_frame(a, b, c);
-                let world = rest - (a * bary.x + b * bary.y + c * bary.z);
+                let (triangle, _, bary) = nearest_on(vertices, &skin.triangles, rest);
+                let corners = triangle.map(|i| vertices[i as usize]);
+                let normals = triangle.map(|i| normals[i as usize]);
+                let (point, frame) = surface_frame(corners, normals, bary);
+                let world = rest - point;
                 let offset = Vec3::new(
                     world.dot(frame[0]),
                     world.dot(frame[1]),
@@ -246,11 +292,92 @@ impl Attachments {
                 bary,
                 offset,
             } => {
-                let skin = &self.skins[*mesh];
-                let [a, b, c] = triangle.map(|v| skin.vertex(v, t * fps));
-                let [e, f, n] = triangle_frame(a, b, c);
-                a * bary.x + b * bary.y + c * bary.z + e * offset.x + f * offset.y + n * offset.z
+                let (point, [e, f, n]) = self.skins[*mesh].surface(*triangle, *bary, t * fps);
+                point + e * offset.x + f * offset.y + n * offset.z
             }
         }
+    }
+}
+
+/// The nearest point of `triangles` (on `vertices`) to `p`: its triangle, the point and its
+/// barycentric coordinates.
+fn nearest_on(vertices: &[Vec3], triangles: &[[u32; 3]], p: Vec3) -> ([u32; 3], Vec3, Vec3) {
+    let mut best = (f32::MAX, [0u32; 3], p, Vec3::X);
+    for t in triangles {
+        let [a, b, c] = t.map(|i| vertices[i as usize]);
+        let bary = crate::collide::mesh::closest_barycentric(p, a, b, c);
+        let q = a * bary.x + b * bary.y + c * bary.z;
+        let d = q.distance_squared(p);
+        if d < best.0 {
+            best = (d, *t, q, bary);
+        }
+    }
+    (best.1, best.2, best.3)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A strip of two panels meeting along the z axis, each panel folded up by `angle` about
+    /// it (a valley, like a hip crease closing).
+    fn hinge(angle: f32) -> Vec<Vec3> {
+        let (c, s) = (angle.cos(), angle.sin());
+        [-0.3f32, 0.0, 0.3]
+            .iter()
+            .flat_map(|&x| [-0.5f32, 0.5].map(|z| Vec3::new(x * c, x.abs() * s, z)))
+            .collect()
+    }
+
+    #[test]
+    fn neighbours_either_side_of_a_folding_crease_stay_neighbours() {
+        // Vertices: 0, 1 at x = -0.3; 2, 3 on the crease; 4, 5 at x = 0.3 (z = -0.5, 0.5).
+        let triangles = vec![[0, 1, 3], [0, 3, 2], [2, 3, 5], [2, 5, 4]];
+        let folded = 45f32.to_radians();
+        let frames = vec![hinge(0.0), hinge(folded)];
+        let up = |t: [u32; 3]| {
+            let [a, b, c] = t.map(|i| frames[0][i as usize]);
+            (b - a).cross(c - a).y
+        };
+        assert!(triangles.iter().all(|&t| up(t) > 0.0), "the strip faces +Y");
+        // Two particles 3 cm above the skin, 1 cm either side of the crease.
+        let rests = [Vec3::new(-0.01, 0.03, 0.0), Vec3::new(0.01, 0.03, 0.0)];
+        let mut attachments = Attachments {
+            pending: vec![PendingBinding {
+                character: "body".into(),
+                frame: 0,
+                bind_pose: false,
+                particles: vec![(0, rests[0]), (1, rests[1])],
+            }],
+            ..Attachments::default()
+        };
+        let skin = Skin::new("body".into(), triangles.clone(), frames.clone(), None);
+        attachments.bind_skins(vec![skin]).unwrap();
+        let at = |frame: f32| {
+            let [a, b] = [0, 1].map(|i| attachments.position(&attachments.list[i], frame, 1.0));
+            (a, b)
+        };
+        let (a0, b0) = at(0.0);
+        assert!(a0.distance(rests[0]) < 1e-6 && b0.distance(rests[1]) < 1e-6);
+        let (a1, b1) = at(1.0);
+        // The skin points they ride, 1 cm either side of the crease along the folded panels.
+        let (c, s) = (folded.cos(), folded.sin());
+        let skin = [
+            Vec3::new(-0.01 * c, 0.01 * s, 0.0),
+            Vec3::new(0.01 * c, 0.01 * s, 0.0),
+        ];
+        let apart = skin[0].distance(skin[1]);
+        let smooth = a1.distance(b1);
+        // Each offset kept along its own facet's normal instead.
+        let facet = [Vec3::new(s, c, 0.0), Vec3::new(-s, c, 0.0)];
+        let (fa, fb) = (skin[0] + facet[0] * 0.03, skin[1] + facet[1] * 0.03);
+        assert!(
+            a1.x < b1.x && (smooth - apart).abs() < 0.25 * apart,
+            "smooth frames: {a1} and {b1}, {smooth} m apart, riding skin {apart} m apart"
+        );
+        assert!(
+            fa.x > fb.x && (fa.distance(fb) - apart).abs() > 0.25 * apart,
+            "facet frames would keep them too ({fa}, {fb}): the case tests nothing"
+        );
     }
 }
