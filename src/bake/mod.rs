@@ -244,7 +244,9 @@ fn run(
         mut sim,
         characters,
         character_meshes,
+        warnings: binding,
     } = simulation(scene, characters, &options.scene_file)?;
+    warnings.extend(binding);
     // The rest pose, the meshes and the report as the scene builds them, before a checkpoint
     // is put back.
     let rest = sim.export_positions();

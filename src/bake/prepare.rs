@@ -17,6 +17,8 @@ pub struct Prepared {
     pub characters: Vec<CharacterReport>,
     /// The characters' meshes over frames 0…N (those whose topology holds), for the exports.
     pub character_meshes: Vec<AnimatedMesh>,
+    /// What the report warns of (skin attachments bound far from the skin).
+    pub warnings: Vec<String>,
 }
 
 /// Builds the complete simulation of a (validated) scene with its loaded characters; `file`
@@ -36,6 +38,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
         }
         character_meshes.extend(c.mesh);
     }
+    let mut warnings = Vec::new();
     if !sim.attachments.unbound().is_empty() {
         let skins = character_meshes
             .iter()
@@ -49,7 +52,8 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
                 )
             })
             .collect();
-        sim.attachments
+        warnings = sim
+            .attachments
             .bind_skins(skins)
             .map_err(|reason| Error::InvalidField {
                 file: file.to_string(),
@@ -61,5 +65,6 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
         sim,
         characters: reports,
         character_meshes,
+        warnings,
     })
 }

@@ -175,6 +175,7 @@ pub struct Attachments {
 /// A character attachment waiting for the character's skin.
 #[derive(Clone, Debug)]
 struct PendingBinding {
+    garment: String,
     character: String,
     frame: u32,
     /// The garment is `on` this character: bind in its bind pose rather than at `frame`.
@@ -201,6 +202,7 @@ impl Attachments {
                     .collect();
                 match &a.character {
                     Some(name) => out.pending.push(PendingBinding {
+                        garment: garment.name.clone(),
                         character: name.clone(),
                         frame: a.frame,
                         bind_pose: spec.on.as_ref() == Some(name),
@@ -236,9 +238,12 @@ impl Attachments {
 
     /// Binds the character attachments to `skins`: each particle to the nearest point of the
     /// nearest triangle at its bind frame, or in the character's bind pose for a garment
-    /// modelled on it (`on`).
-    pub fn bind_skins(&mut self, skins: Vec<Skin>) -> Result<(), String> {
+    /// modelled on it (`on`). Returns a warning for each attachment with particles far from
+    /// the skin ([`far_from_skin`]).
+    pub fn bind_skins(&mut self, skins: Vec<Skin>) -> Result<Vec<String>, String> {
+        let mut warnings = Vec::new();
         for PendingBinding {
+            garment,
             character: name,
             frame,
             bind_pose,
@@ -256,8 +261,11 @@ impl Attachments {
                 _ => &skin.frames[f],
             };
             let normals = skin.normals_of(vertices);
+            let rests: Vec<Vec3> = particles.iter().map(|p| p.1).collect();
+            let mut distances = Vec::with_capacity(rests.len());
             for (particle, rest) in particles {
-                let (triangle, _, bary) = nearest_on(vertices, &skin.triangles, rest);
+                let (triangle, point, bary) = nearest_on(vertices, &skin.triangles, rest);
+                distances.push(point.distance(rest));
                 let corners = triangle.map(|i| vertices[i as usize]);
                 let normals = triangle.map(|i| normals[i as usize]);
                 let (point, frame) = surface_frame(corners, normals, bary);
@@ -277,9 +285,12 @@ impl Attachments {
                     },
                 });
             }
+            warnings.extend(far_from_skin(&rests, &distances).map(|far| {
+                format!("garment {garment:?}'s attachment to character {name:?}: {far}; each follows the skin nearest it, which can be another part of the body (an arm beside the hips) and drag the garment when that part moves: attach fewer particles, or model the edge closer to the skin")
+            }));
         }
         self.skins = skins;
-        Ok(())
+        Ok(warnings)
     }
 
     /// Where attachment `a` is at time `t` seconds, `fps` frames per second.
@@ -315,6 +326,45 @@ fn nearest_on(vertices: &[Vec3], triangles: &[[u32; 3]], p: Vec3) -> ([u32; 3], 
     (best.1, best.2, best.3)
 }
 
+/// How an attachment's particles (rest positions `rests`, `distances` from the skin they bind
+/// to) are far from it, when some are more than two of the group's spacings (its smallest
+/// distance between two particles) away: a garment edge modelled that far off the body is bound
+/// to whatever skin is nearest, and on CesiumMan a skirt's waistband 5 to 8 cm out was bound to
+/// his arm. None for a closer group, a single particle, or more than 5 000 (every pair would be
+/// compared).
+fn far_from_skin(rests: &[Vec3], distances: &[f32]) -> Option<String> {
+    if rests.len() > 5_000 {
+        return None;
+    }
+    let mut spacing = f32::INFINITY;
+    for (i, a) in rests.iter().enumerate() {
+        for b in &rests[i + 1..] {
+            let d = a.distance(*b);
+            if d > 1e-6 {
+                spacing = spacing.min(d);
+            }
+        }
+    }
+    if !spacing.is_finite() {
+        return None;
+    }
+    let far: Vec<f32> = distances
+        .iter()
+        .copied()
+        .filter(|&d| d > 2.0 * spacing)
+        .collect();
+    let furthest = far.iter().copied().fold(0.0f32, f32::max);
+    (!far.is_empty()).then(|| {
+        format!(
+            "{} of its {} particles are more than {:.1} cm (two particle spacings) from the skin, up to {:.1} cm",
+            far.len(),
+            rests.len(),
+            200.0 * spacing,
+            100.0 * furthest
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -344,6 +394,7 @@ mod tests {
         let rests = [Vec3::new(-0.01, 0.03, 0.0), Vec3::new(0.01, 0.03, 0.0)];
         let mut attachments = Attachments {
             pending: vec![PendingBinding {
+                garment: "band".into(),
                 character: "body".into(),
                 frame: 0,
                 bind_pose: false,
@@ -352,7 +403,10 @@ mod tests {
             ..Attachments::default()
         };
         let skin = Skin::new("body".into(), triangles.clone(), frames.clone(), None);
-        attachments.bind_skins(vec![skin]).unwrap();
+        assert_eq!(
+            attachments.bind_skins(vec![skin]).unwrap(),
+            Vec::<String>::new()
+        );
         let at = |frame: f32| {
             let [a, b] = [0, 1].map(|i| attachments.position(&attachments.list[i], frame, 1.0));
             (a, b)
@@ -378,6 +432,23 @@ mod tests {
         assert!(
             fa.x > fb.x && (fa.distance(fb) - apart).abs() > 0.25 * apart,
             "facet frames would keep them too ({fa}, {fb}): the case tests nothing"
+        );
+    }
+
+    #[test]
+    fn an_attachment_bound_far_from_the_skin_is_warned_of() {
+        let rests = [Vec3::ZERO, Vec3::X * 0.02, Vec3::X * 0.04];
+        assert_eq!(far_from_skin(&rests, &[0.03, 0.039, 0.01]), None);
+        let far = far_from_skin(&rests, &[0.03, 0.051, 0.088]).unwrap();
+        assert!(
+            far.starts_with("2 of its 3 particles are more than 4.0 cm"),
+            "{far}"
+        );
+        assert!(far.ends_with("up to 8.8 cm"), "{far}");
+        assert_eq!(
+            far_from_skin(&[Vec3::ZERO], &[1.0]),
+            None,
+            "no spacing to judge by"
         );
     }
 }
