@@ -352,10 +352,13 @@ fn a_wedged_chunked_plan_runs_with_gnu_parallel() {
 
 #[test]
 fn a_chunked_plan_runs_with_the_openjd_runner_after_the_plan_moved() {
-    // `openjd run` (openjd-cli 0.8.0, which `.ci/deps` installs into target/openjd) takes each
-    // chunk step of one variant in turn, with its `Until`; the plan's paths go through the job
-    // parameter `PlanDir` (by default the template's folder), so a plan moved after planning
-    // (as a worker that sees it at another path would) still runs, to a direct bake's frames.
+    // `openjd run` (openjd-cli 0.8.0, which `.ci/deps` installs into target/openjd) runs a
+    // variant's last chunk step with the steps it depends on: its own chunks, one after
+    // another. Each variant has its own chain (a step's dependencies are all-or-nothing), so
+    // ω = 1.95 failing in its first chunk leaves ω = 1.0's chain free to run. The plan's paths
+    // go through the job parameter `PlanDir` (by default the template's folder), so a plan
+    // moved after planning (as a worker that sees it at another path would) still runs, to a
+    // direct bake's frames.
     let openjd = std::env::current_dir()
         .unwrap()
         .join("target/openjd/bin/openjd");
@@ -375,21 +378,44 @@ fn a_chunked_plan_runs_with_the_openjd_runner_after_the_plan_moved() {
         .output()
         .unwrap();
     assert!(check.status.success(), "{}", common::stderr(&check));
-    for (k, until) in [(1, 10), (2, 20), (3, 30)] {
-        let out = Command::new(&openjd)
+    // Every chunk step after the first depends on the same variant's chunk before, only.
+    let text = std::fs::read_to_string(&template).unwrap();
+    let mut step = String::new();
+    let mut chained = 0;
+    for line in text.lines() {
+        if let Some(name) = line.strip_prefix("- name: ") {
+            step = name.trim_matches('"').to_string();
+        } else if let Some(on) = line.strip_prefix("  - dependsOn: ") {
+            let (chunk, variant) = step.split_once(' ').unwrap();
+            let k: u32 = chunk.trim_start_matches("bake_").parse().unwrap();
+            assert_eq!(on.trim_matches('"'), format!("bake_{:02} {variant}", k - 1));
+            chained += 1;
+        }
+    }
+    assert_eq!(
+        chained, 6,
+        "two later chunks for each of three variants:\n{text}"
+    );
+    let chain = |variant: &str| {
+        Command::new(&openjd)
             .arg("run")
             .arg(&template)
-            .args(["--step", &format!("bake_{k:02}")])
-            .args(["--task-param", "Variant=h_solver.omega-1.0"])
-            .args(["--task-param", &format!("Until={until}")])
+            .args([
+                "--step",
+                &format!("bake_03 {variant}"),
+                "--run-dependencies",
+            ])
             .output()
-            .unwrap();
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success() && !text.contains("ERROR"),
-            "chunk {k}: {text}"
-        );
-    }
+            .unwrap()
+    };
+    let failed = chain("h_solver.omega-1.95");
+    assert!(
+        !failed.status.success(),
+        "ω = 1.95 goes unstable in its first chunk"
+    );
+    let out = chain("h_solver.omega-1.0");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && !text.contains("ERROR"), "{text}");
     let direct = d.join("direct_1.0");
     let out = drape(
         d,

@@ -198,8 +198,10 @@ fn a_plan_in_chunks_run_chunk_after_chunk_bakes_the_whole_shot() {
         );
     }
     let yaml = std::fs::read_to_string(d.join("plan/job.yaml")).unwrap();
+    // A chain of chunk steps per variant.
     assert!(
-        yaml.contains("- name: bake_03") && yaml.contains("dependsOn: bake_02"),
+        yaml.contains("- name: \"bake_03 tiny_solver.iterations-3\"")
+            && yaml.contains("dependsOn: \"bake_02 tiny_solver.iterations-3\""),
         "{yaml}"
     );
     run_jobs(d);

@@ -436,8 +436,9 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
 }
 
 /// The plan as an Open Job Description job template (specification 2023-09): one step whose
-/// tasks range over the variants; with chunks, one step per chunk, each after the one before,
-/// its tasks pairing each variant with the frame its chunk stops after.
+/// tasks range over the variants; with chunks, a chain of steps per variant ([`chunk_step`]),
+/// each chunk after the variant's chunk before, its one task the variant and the frame its
+/// chunk stops after.
 fn openjd(exe: &str, stem: &str, variants: &[Variant], cpus: u32) -> String {
     let json = |s: &str| serde_json::to_string(s).expect("a string serialises");
     // Paths through the job parameters: `PlanDir` (PATH, by default the template's own folder,
@@ -502,16 +503,34 @@ fn openjd(exe: &str, stem: &str, variants: &[Variant], cpus: u32) -> String {
         return text;
     }
     bake_args.push_str(", '--until', '{{Task.Param.Until}}'");
-    for k in 0..chunks {
-        let tasks: Vec<(&Variant, Option<u32>)> = variants
-            .iter()
-            .filter_map(|v| v.chunks.get(k).map(|&u| (v, Some(u))))
-            .collect();
-        let name = format!("bake_{:02}", k + 1);
-        text.push_str(&step(&name, &tasks, &bake_args, after.as_deref()));
-        after = Some(name);
+    // One chain of steps per variant: a step's dependencies are all-or-nothing (every task of
+    // the step before must succeed), so one step per chunk over every variant would let a
+    // variant that fails hold back every other variant's next chunk.
+    for (i, v) in variants.iter().enumerate() {
+        let mut previous = after.clone();
+        for (k, &until) in v.chunks.iter().enumerate() {
+            let name = json(&chunk_step(k, &v.name, i));
+            text.push_str(&step(
+                &name,
+                &[(v, Some(until))],
+                &bake_args,
+                previous.as_deref(),
+            ));
+            previous = Some(name);
+        }
     }
     text
+}
+
+/// The OpenJD step of chunk `k` (from 0) of variant `name`, the `index`-th: `bake_02 NAME`, or
+/// `bake_02 variant 3` for a name that would make it longer than a step name may be (64).
+fn chunk_step(k: usize, name: &str, index: usize) -> String {
+    let step = format!("bake_{:02} {name}", k + 1);
+    if step.chars().count() <= 64 {
+        step
+    } else {
+        format!("bake_{:02} variant {}", k + 1, index + 1)
+    }
 }
 
 /// The plan's recipes, written beside its lists: `run_line.sh FILE N` runs line N of a list
@@ -661,4 +680,22 @@ fn status(dir: &Path) -> anyhow::Result<i32> {
     } else {
         1
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::chunk_step;
+
+    #[test]
+    fn a_chunk_step_is_named_by_its_variant_while_the_name_fits() {
+        assert_eq!(
+            chunk_step(1, "h_solver.omega-1.3", 1),
+            "bake_02 h_solver.omega-1.3"
+        );
+        // OpenJD refuses step names over 64 characters (`openjd check`: "name must be at most
+        // 64 characters long").
+        let fits = "x".repeat(56);
+        assert_eq!(chunk_step(0, &fits, 0).chars().count(), 64);
+        assert_eq!(chunk_step(0, &format!("{fits}y"), 2), "bake_01 variant 3");
+    }
 }
