@@ -139,7 +139,10 @@ impl Slurm {
             .trim()
             .to_string();
         // Ports of this process's own, so a Slurm already on the machine is left alone.
-        let port = 20000 + (std::process::id() % 20000) as u16;
+        // Two ports per Slurm this process starts (the tests run side by side).
+        static STARTED: std::sync::atomic::AtomicU16 = std::sync::atomic::AtomicU16::new(0);
+        let nth = STARTED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let port = 20000 + (std::process::id() % 5000) as u16 * 4 + 2 * nth;
         let conf = root.join("slurm.conf");
         let r = root.display();
         std::fs::write(
@@ -431,4 +434,103 @@ fn a_chunked_plan_runs_with_the_openjd_runner_after_the_plan_moved() {
     assert!(out.status.success(), "{}", common::stderr(&out));
     let planned = d.join("moved/bakes/h_solver.omega-1.0");
     assert_eq!(frames_hash(&planned), frames_hash(&direct));
+}
+
+/// A bake long enough to be caught between checkpoints: 200 frames of a 60 × 60 sheet,
+/// a checkpoint every 10.
+const LONG: &str = r#"{ "name": "long", "frames": 200, "substeps": 10, "backend": "cpu",
+    "checkpoint_every": 10, "solver": { "iterations": 10 }, "output": { "gltf": "none" },
+    "garments": [{ "name": "cloth", "resolution": [60, 60], "pins": [[0, 0], [-1, 0]] }] }"#;
+
+#[test]
+fn a_slurm_task_requeued_mid_bake_resumes_from_its_checkpoint() {
+    // Pre-emption as a farm does it: `scontrol requeue` while the task bakes past its first
+    // checkpoint. Slurm signals the task (drape checkpoints and stops), queues it again, and
+    // the same line runs again with `--resume`: the bake goes on from its checkpoint to the
+    // frames of a bake that never stopped.
+    let dir = common::temp_dir();
+    let d = dir.path();
+    let slurm = Slurm::start(&d.join("slurm"));
+    common::write(d, "long.json", LONG);
+    let out = drape(d, &["plan", "long.json", "--cpus", "1", "--out", "plan"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let plan = d.join("plan");
+    let out = slurm
+        .command("bash")
+        .arg(plan.join("slurm.sh"))
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let bake = plan.join("bakes/long");
+    let started = Instant::now();
+    // A bake in progress writes into a staging folder beside its own (`.long.tmp-PID`).
+    let bakes = plan.join("bakes");
+    let checkpointed = || {
+        std::fs::read_dir(&bakes).is_ok_and(|folders| {
+            folders.flatten().any(|f| {
+                f.file_name().to_string_lossy().starts_with(".long.tmp-")
+                    && std::fs::read_dir(f.path().join("checkpoints")).is_ok_and(|entries| {
+                        entries
+                            .flatten()
+                            .any(|e| e.file_name().to_string_lossy().ends_with(".ckpt"))
+                    })
+            })
+        })
+    };
+    while !checkpointed() {
+        assert!(
+            started.elapsed() < Duration::from_secs(120),
+            "no checkpoint in {}: {}",
+            bakes.display(),
+            slurm.logs()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let queue = slurm
+        .command("squeue")
+        .args(["-h", "-o", "%i %T"])
+        .output()
+        .unwrap();
+    let queue = String::from_utf8_lossy(&queue.stdout).to_string();
+    let job = queue
+        .lines()
+        .find(|l| l.ends_with(" RUNNING"))
+        .and_then(|l| l.split_whitespace().next())
+        .unwrap_or_else(|| panic!("the bake is not running after its first checkpoint:\n{queue}"))
+        .to_string();
+    let requeue = slurm
+        .command("scontrol")
+        .args(["requeue", &job])
+        .output()
+        .unwrap();
+    assert!(requeue.status.success(), "{}", common::stderr(&requeue));
+    // Slurm holds a requeued job back for a while (its begin time moves on); an operator
+    // releases it at once, as here.
+    std::thread::sleep(Duration::from_millis(500));
+    let release = slurm
+        .command("scontrol")
+        .args(["update", &format!("JobId={job}"), "StartTime=now"])
+        .output()
+        .unwrap();
+    assert!(release.status.success(), "{}", common::stderr(&release));
+    slurm.wait_settled(Duration::from_secs(400));
+    eprintln!(
+        "requeued {job} after its first checkpoint; done {:.1} s after the submission, resumed {}",
+        started.elapsed().as_secs_f64(),
+        std::fs::read_to_string(bake.join("report.json"))
+            .unwrap_or_default()
+            .contains("\"resumed\"")
+    );
+    let text = std::fs::read_to_string(bake.join("report.json")).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(report["frames_baked"], 200, "{text}");
+    assert!(
+        report["resumed"]["after_frame"].as_u64().unwrap_or(0) >= 10,
+        "not resumed from a checkpoint: {text}"
+    );
+    let direct = d.join("direct");
+    let out = drape(d, &["bake", "long.json", "--out", direct.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    assert_eq!(frames_hash(&bake), frames_hash(&direct));
 }
