@@ -1,7 +1,7 @@
 //! Baked exports read back by readers drape did not write: the `gltf` crate for glTF (frame k of
 //! the morph-target animation equals OBJ frame k), a PC2 reader written here from
-//! the format's spec, the USD text's time samples, and the Khronos glTF validator when `.ci/deps`
-//! installed it. Bad output folders fail clearly and leave nothing behind.
+//! the format's spec, the USD text's time samples and usd-core (points, velocities, extents),
+//! and the Khronos glTF validator, which `.ci/deps` installs with usd-core. Bad output folders fail clearly and leave nothing behind.
 
 mod common;
 
@@ -463,4 +463,102 @@ fn a_shot_starting_at_frame_1001_numbers_every_export_from_it() {
     assert_eq!(one["frame_start"], 1);
     assert!(d.join("one/obj/cloth_0001.obj").is_file());
     assert_eq!(one["frames_hash"], report["frames_hash"]);
+}
+
+/// The Python of the USD virtual environment `.ci/deps` makes (usd-core from PyPI).
+fn usd_python() -> PathBuf {
+    let python = std::env::current_dir()
+        .unwrap()
+        .join("target/usd/bin/python");
+    assert!(
+        python.is_file(),
+        "{} is missing: run .ci/deps (it installs usd-core from PyPI)",
+        python.display()
+    );
+    python
+}
+
+#[test]
+fn usd_core_reads_points_velocities_and_extents_that_match_the_obj_frames() {
+    // usd-core (the official USD library) reads every sample back: points equal the OBJ
+    // frames, velocities are their central differences in metres per second (one-sided at the
+    // ends), extents their bounds.
+    let dir = common::temp_dir();
+    let out = bake(dir.path(), &[]);
+    let script = r#"
+import json, sys
+from pxr import Usd, UsdGeom
+stage = Usd.Stage.Open(sys.argv[1])
+found = {}
+for name in ("sheet", "rope"):
+    prim = UsdGeom.PointBased(stage.GetPrimAtPath("/bake/" + name))
+    times = prim.GetPointsAttr().GetTimeSamples()
+    assert prim.GetVelocitiesAttr().GetTimeSamples() == times, name
+    found[name] = [
+        {"time": t,
+         "points": [list(p) for p in prim.GetPointsAttr().Get(t)],
+         "velocities": [list(v) for v in prim.GetVelocitiesAttr().Get(t)],
+         "extent": [list(e) for e in prim.GetExtentAttr().Get(t)]}
+        for t in times]
+print(json.dumps(found))
+"#;
+    let run = std::process::Command::new(usd_python())
+        .args(["-c", script])
+        .arg(out.join("exports.usda"))
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", common::stderr(&run));
+    let found: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let vec3 = |v: &serde_json::Value| {
+        let c: Vec<f32> = v
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap() as f32)
+            .collect();
+        Vec3::new(c[0], c[1], c[2])
+    };
+    for name in ["sheet", "rope"] {
+        let frames: Vec<Vec<Vec3>> = (1..=6)
+            .map(|k| obj_positions(&out.join(format!("obj/{name}_{k:04}.obj"))))
+            .collect();
+        let samples = found[name].as_array().unwrap();
+        assert_eq!(samples.len(), 6, "{name}");
+        let mut fastest = 0.0f32;
+        for (k, sample) in samples.iter().enumerate() {
+            assert_eq!(sample["time"].as_f64(), Some(k as f64 + 1.0));
+            let points: Vec<Vec3> = sample["points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(vec3)
+                .collect();
+            assert_eq!(points.len(), frames[k].len(), "{name} frame {k}");
+            let (before, after) = (k.saturating_sub(1), (k + 1).min(5));
+            let per = 60.0 / (after - before) as f32;
+            for (i, p) in points.iter().enumerate() {
+                assert!(
+                    p.distance(frames[k][i]) < 1e-6,
+                    "{name} frame {k} point {i}"
+                );
+                let v = vec3(&sample["velocities"][i]);
+                let expected = (frames[after][i] - frames[before][i]) * per;
+                // OBJ keeps 6 decimals: differences of two, over 1/60 s, within 1e-4 m/s.
+                assert!(
+                    v.distance(expected) < 1e-4,
+                    "{name} frame {k} point {i}: velocity {v}, central difference {expected}"
+                );
+                fastest = fastest.max(v.length());
+            }
+            let (lo, hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
+                (lo.min(*p), hi.max(*p))
+            });
+            let extent = sample["extent"].as_array().unwrap();
+            assert!(vec3(&extent[0]).distance(lo) < 1e-6 && vec3(&extent[1]).distance(hi) < 1e-6);
+        }
+        assert!(
+            fastest > 0.1,
+            "{name} hardly moves ({fastest} m/s): the case tests nothing"
+        );
+    }
 }

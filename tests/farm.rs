@@ -217,6 +217,17 @@ impl Slurm {
         slurm
     }
 
+    /// Runs `PLAN/slurm.sh` from `dir`, as `docs/farm.md` says, and checks that it submitted.
+    fn submit(&self, plan: &Path, dir: &Path) {
+        let out = self
+            .command("bash")
+            .arg(plan.join("slurm.sh"))
+            .current_dir(dir)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", common::stderr(&out));
+    }
+
     fn command(&self, program: &str) -> Command {
         let mut c = Command::new(program);
         c.env("SLURM_CONF", &self.conf);
@@ -317,13 +328,7 @@ fn a_wedged_chunked_plan_runs_on_a_real_slurm() {
     let slurm = Slurm::start(&d.join("slurm"));
     let plan = plan(d, "plan");
     let started = Instant::now();
-    let out = slurm
-        .command("bash")
-        .arg(plan.join("slurm.sh"))
-        .current_dir(d)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    slurm.submit(&plan, d);
     let stuck = slurm.wait_settled(Duration::from_secs(300));
     eprintln!(
         "Slurm ran the plan in {:.1} s (settled 8 s before); left pending: {stuck:?}",
@@ -455,13 +460,7 @@ fn a_slurm_task_requeued_mid_bake_resumes_from_its_checkpoint() {
     let out = drape(d, &["plan", "long.json", "--cpus", "1", "--out", "plan"]);
     assert!(out.status.success(), "{}", common::stderr(&out));
     let plan = d.join("plan");
-    let out = slurm
-        .command("bash")
-        .arg(plan.join("slurm.sh"))
-        .current_dir(d)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    slurm.submit(&plan, d);
     let bake = plan.join("bakes/long");
     let started = Instant::now();
     // A bake in progress writes into a staging folder beside its own (`.long.tmp-PID`).

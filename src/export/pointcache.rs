@@ -195,7 +195,7 @@ pub fn write_usda(
             name.push('_');
         }
         used.push(name.clone());
-        usd_mesh(&mut out, recorded, m, &name, first_frame).map_err(|e| match e {
+        usd_mesh(&mut out, recorded, m, &name, first_frame, fps).map_err(|e| match e {
             UsdError::Write(e) => io(e),
             UsdError::Read(e) => e,
         })?;
@@ -217,14 +217,15 @@ impl From<std::io::Error> for UsdError {
     }
 }
 
-/// Writes one mesh's prim: faces (the last), colour, UVs, and the time-sampled normals, points
-/// and extents.
+/// Writes one mesh's prim: faces (the last), colour, UVs, and the time-sampled normals, points,
+/// velocities (of an animated one) and extents.
 fn usd_mesh(
     out: &mut impl Write,
     recorded: &mut Recorded,
     m: usize,
     name: &str,
     first_frame: u32,
+    fps: f32,
 ) -> std::result::Result<(), UsdError> {
     let mesh = recorded.meshes[m].clone();
     let triangles = recorded.last_triangles(m).to_vec();
@@ -306,6 +307,55 @@ fn usd_mesh(
         );
         vec![lo, hi]
     })?;
+    if frames > 1 {
+        velocities(out, recorded, m, first_frame, fps)?;
+    }
     out.write_all(b"    }\n")?;
+    Ok(())
+}
+
+/// Writes mesh `m`'s `velocities` time samples (UsdGeom's: metres per second, so a renderer
+/// blurs the motion of a frame without the frames around it): central differences of the
+/// frames' points, one-sided at the first and the last frame. A neighbour with another vertex
+/// count (none in a bake today) leaves the other side alone, or zeros.
+fn velocities(
+    out: &mut dyn Write,
+    recorded: &mut Recorded,
+    m: usize,
+    first_frame: u32,
+    fps: f32,
+) -> std::result::Result<(), UsdError> {
+    out.write_all(b"        vector3f[] velocities.timeSamples = {\n")?;
+    let frames = recorded.frames;
+    let mut read = |k: usize| recorded.positions(m, k).map_err(UsdError::Read);
+    let (mut previous, mut now) = (None::<Vec<Vec3>>, read(0)?);
+    for k in 0..frames {
+        let next = if k + 1 < frames {
+            Some(read(k + 1)?)
+        } else {
+            None
+        };
+        let n = now.len();
+        let before = previous.as_ref().filter(|f| f.len() == n);
+        let after = next.as_ref().filter(|f| f.len() == n);
+        let velocity: Vec<Vec3> = match (before, after) {
+            (Some(a), Some(b)) => a
+                .iter()
+                .zip(b)
+                .map(|(a, b)| (*b - *a) * (0.5 * fps))
+                .collect(),
+            (None, Some(b)) => now.iter().zip(b).map(|(a, b)| (*b - *a) * fps).collect(),
+            (Some(a), None) => a.iter().zip(&now).map(|(a, b)| (*b - *a) * fps).collect(),
+            (None, None) => vec![Vec3::ZERO; now.len()],
+        };
+        let mut line = format!("            {}: ", first_frame as usize + k);
+        points(&mut line, &velocity);
+        line.push_str(",\n");
+        out.write_all(line.as_bytes())?;
+        if let Some(next) = next {
+            previous = Some(std::mem::replace(&mut now, next));
+        }
+    }
+    out.write_all(b"        }\n")?;
     Ok(())
 }
