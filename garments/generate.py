@@ -10,9 +10,11 @@ cesium_skirt.obj: an A-line skirt modelled on CesiumMan's bind pose: an elliptic
 cesium_cape.obj:  a cape down CesiumMan's bind-pose back, from his shoulders to his thighs.
 cesium_top.obj:   a top with two sleeves modelled on CesiumMan's bind pose (arms out and down):
                   his own torso and upper arms pushed out along their normals by CLEARANCE.
+robot_cape.obj:   a cape down RobotExpressive's back in its default node pose (file units: the
+                  robot is 4.4 units tall), from under its head to its thighs.
 
-The CesiumMan garments are in the character file's frame (metres, Y up, bind pose): a scene
-places them with `"on": "<the character>"`.
+The CesiumMan and robot garments are in the character file's frame (its units, Y up, bind
+pose): a scene places them with `"on": "<the character>"`.
 """
 import json
 import math
@@ -246,9 +248,111 @@ def cesium_cape(columns=15, rows=23, collar=0.07, half_width=0.17, top=1.06, bot
           vertices, uvs, faces)
 
 
+ROBOT = os.path.join(HERE, "..", "characters", "RobotExpressive", "RobotExpressive.glb")
+
+
+def glb_node_mesh(path, name):
+    """Vertices and triangles of the mesh on the node called `name` in a GLB, placed by the
+    node's and its parents' default transforms (translation, rotation, scale or a matrix)."""
+    data = open(path, "rb").read()
+    length = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + length])
+    binary = 20 + length + 8
+    parents = {c: i for i, n in enumerate(doc["nodes"]) for c in n.get("children", [])}
+
+    def local(n):
+        node = doc["nodes"][n]
+        if "matrix" in node:
+            m = node["matrix"]
+            return [[m[c * 4 + r] for c in range(4)] for r in range(4)]
+        t = node.get("translation", [0, 0, 0])
+        x, y, z, w = node.get("rotation", [0, 0, 0, 1])
+        s = node.get("scale", [1, 1, 1])
+        rot = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+               [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+               [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        return [[rot[r][0] * s[0], rot[r][1] * s[1], rot[r][2] * s[2], t[r]] for r in range(3)] + [[0, 0, 0, 1]]
+
+    def times(a, b):
+        return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+    node = next(i for i, n in enumerate(doc["nodes"]) if n.get("name") == name and "mesh" in n)
+    place, at = local(node), node
+    while at in parents:
+        at = parents[at]
+        place = times(local(at), place)
+
+    def read(accessor, fmt):
+        a = doc["accessors"][accessor]
+        view = doc["bufferViews"][a["bufferView"]]
+        start = binary + view.get("byteOffset", 0) + a.get("byteOffset", 0)
+        size = struct.calcsize("<" + fmt)
+        stride = view.get("byteStride", size)
+        return [struct.unpack_from("<" + fmt, data, start + stride * i) for i in range(a["count"])]
+
+    vertices, triangles = [], []
+    for p in doc["meshes"][doc["nodes"][node]["mesh"]]["primitives"]:
+        base = len(vertices)
+        for x, y, z in read(p["attributes"]["POSITION"], "3f"):
+            vertices.append(tuple(place[r][0] * x + place[r][1] * y + place[r][2] * z + place[r][3]
+                                  for r in range(3)))
+        kind = doc["accessors"][p["indices"]]["componentType"]
+        flat = [i[0] for i in read(p["indices"], "H" if kind == 5123 else "I")]
+        triangles += [tuple(base + i for i in flat[k:k + 3]) for k in range(0, len(flat), 3)]
+    return vertices, triangles
+
+
+def behind(vertices, triangles, x, y):
+    """The smallest z of the surface over (x, y) (its back, seen along +z), or None."""
+    best = None
+    for t in triangles:
+        a, b, c = (vertices[i] for i in t)
+        d = (b[1] - c[1]) * (a[0] - c[0]) + (c[0] - b[0]) * (a[1] - c[1])
+        if abs(d) < 1e-12:
+            continue
+        l1 = ((b[1] - c[1]) * (x - c[0]) + (c[0] - b[0]) * (y - c[1])) / d
+        l2 = ((c[1] - a[1]) * (x - c[0]) + (a[0] - c[0]) * (y - c[1])) / d
+        l3 = 1.0 - l1 - l2
+        if min(l1, l2, l3) >= 0.0:
+            z = l1 * a[2] + l2 * b[2] + l3 * c[2]
+            best = z if best is None else min(best, z)
+    return best
+
+
+def robot_cape(columns=14, rows=22, collar=0.35, half_width=0.55, top=2.6, bottom=1.05,
+               clearance=0.13):
+    """A cape down RobotExpressive's back (its front is +Z), in file units: a trapezoid from a
+    collar `collar` either side of its spine under its head to `half_width` either side at its
+    thighs, every point `clearance` (2.6 cm at the 0.2 scale its scene uses) behind the torso's
+    back along -Z; past the widest point of the back (its hips) the cape falls straight."""
+    torso, triangles = glb_node_mesh(ROBOT, "Torso")
+    vertices, uvs, above = [], [], None
+    for r in range(rows + 1):
+        y = top + (bottom - top) * r / rows
+        half = collar + (half_width - collar) * r / rows
+        xs = [-half + 2.0 * half * c / columns for c in range(columns + 1)]
+        row = []
+        for c, x in enumerate(xs):
+            z = behind(torso, triangles, x, y)
+            z = None if z is None else z - clearance
+            if above is not None and (z is None or z > above[c]):
+                z = above[c]
+            row.append(z)
+        known = [z for z in row if z is not None]
+        row = [min(known) if z is None else z for z in row]
+        above = row
+        for c, x in enumerate(xs):
+            vertices.append((x, y, row[c]))
+            uvs.append((c / columns, 1.0 - r / rows))
+    write("robot_cape.obj",
+          f"robot_cape: a cape down RobotExpressive's back, {2 * collar} to {2 * half_width} units wide",
+          vertices, uvs, grid_faces(rows, columns))
+
+
 if __name__ == "__main__":
     cushion()
     skirt()
     cesium_skirt()
     cesium_top()
     cesium_cape()
+    robot_cape()

@@ -3,7 +3,8 @@
 //! a character (`on`) lines up with it however the character is placed; the T-pose top starts
 //! inside CesiumMan's arms without a pre-roll and clear of them with one; a bake resumed inside
 //! the pre-roll is bit-identical to one that never stopped; the exports leave the pre-roll out
-//! unless asked, and `drape render` numbers an exported pre-roll's images as the bake did.
+//! unless asked, and `drape render` numbers an exported pre-roll's images as the bake did; the
+//! shipped robot's cape runs with no particle inside the robot, pre-roll included.
 
 mod common;
 
@@ -298,6 +299,48 @@ fn a_bake_resumed_inside_the_preroll_is_the_one_that_never_stopped() {
         );
     }
     assert!(!dir.path().join("all/obj/cape_0984.obj").exists());
+}
+
+#[test]
+fn the_robots_cape_runs_with_no_particle_inside_the_robot() {
+    // scenes/robot_cape_run.json, its first 40 frames after the 50 of its pre-roll: a cape
+    // modelled on RobotExpressive's default pose, its collar bound to the torso, the robot at
+    // 0.91 m running with arms and legs swinging past it.
+    let path = root().join("scenes/robot_cape_run.json");
+    let mut scene = drape::scene::Scene::load(&path).unwrap();
+    scene.frames = 40;
+    scene.output.obj = false;
+    scene.output.gltf = drape::scene::GltfOutput::None;
+    let dir = common::temp_dir();
+    let options = BakeOptions {
+        shell_cache: Some(dir.path().join("cache")),
+        ..common::bake_options(&dir.path().join("out"))
+    };
+    let report = bake(&scene, &options).expect("bake").report;
+    assert!(report.stable, "{:?}", report.failure);
+    let preroll = report.preroll.as_ref().unwrap();
+    assert_eq!(preroll.frames_baked, 50);
+    assert!(preroll
+        .mesh_penetrations
+        .iter()
+        .all(|p| p.penetration.inside == 0));
+    assert_eq!(
+        report.mesh_penetrations_per_frame.len(),
+        90,
+        "pre-roll and shot"
+    );
+    for f in &report.mesh_penetrations_per_frame {
+        assert!(
+            f.inside.iter().all(|&n| n == 0),
+            "frame {}: {:?}",
+            f.frame,
+            f.inside
+        );
+    }
+    assert!(
+        report.clean_start.as_ref().unwrap().moved > 0,
+        "the case starts close to the body"
+    );
 }
 
 #[test]
