@@ -4,9 +4,10 @@
 //! run from a generated `slurm.conf` in a temporary folder and are stopped by their PIDs) and by
 //! `bash plan/parallel.sh` with GNU parallel. Every stable variant ends with the frames of a
 //! direct bake, the failure is reported by `drape plan --status` (exit 1), and only the failed
-//! variant's later chunks are held back (Slurm 22.05 leaves them pending, "DependencyNeverSatisfied",
-//! even with `--kill-on-invalid-dep=yes`). These are the commands
-//! `docs/farm.md` gives. Where a daemon cannot start the test fails saying why.
+//! variant's later chunks are held back (Slurm 22.05 leaves them pending,
+//! "DependencyNeverSatisfied"). These are the commands `docs/farm.md` gives; a task requeued in
+//! the middle of a chunk resumes from its checkpoint. Where a daemon cannot start the test fails
+//! saying why.
 
 mod common;
 
@@ -457,16 +458,29 @@ const LONG: &str = r#"{ "name": "long", "frames": 200, "substeps": 10, "backend"
     "garments": [{ "name": "cloth", "resolution": [60, 60], "pins": [[0, 0], [-1, 0]] }] }"#;
 
 #[test]
-fn a_slurm_task_requeued_mid_bake_resumes_from_its_checkpoint() {
-    // Pre-emption as a farm does it: `scontrol requeue` while the task bakes past its first
-    // checkpoint. Slurm signals the task (drape checkpoints and stops), queues it again, and
-    // the same line runs again with `--resume`: the bake goes on from its checkpoint to the
-    // frames of a bake that never stopped.
+fn a_slurm_task_requeued_mid_chunk_resumes_from_its_checkpoint() {
+    // Pre-emption as a farm does it: `scontrol requeue` while the first of two chunks bakes
+    // past its first checkpoint. Slurm signals the task (drape checkpoints and stops), queues
+    // it again, and the same line runs again with `--resume`: the chunk goes on from its
+    // checkpoint, the second chunk from the first's end, to the frames of a bake that never
+    // stopped.
     let dir = common::temp_dir();
     let d = dir.path();
     let slurm = Slurm::start(&d.join("slurm"));
     common::write(d, "long.json", LONG);
-    let out = drape(d, &["plan", "long.json", "--cpus", "1", "--out", "plan"]);
+    let out = drape(
+        d,
+        &[
+            "plan",
+            "long.json",
+            "--chunk",
+            "100",
+            "--cpus",
+            "1",
+            "--out",
+            "plan",
+        ],
+    );
     assert!(out.status.success(), "{}", common::stderr(&out));
     let plan = d.join("plan");
     slurm.submit(&plan, d);
@@ -495,12 +509,12 @@ fn a_slurm_task_requeued_mid_bake_resumes_from_its_checkpoint() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    let queue = slurm.run("squeue", &["-h", "-o", "%i %T"]);
+    let queue = slurm.run("squeue", &["-h", "-o", "%i %T %j"]);
     let job = queue
         .lines()
-        .find(|l| l.ends_with(" RUNNING"))
+        .find(|l| l.ends_with(" RUNNING drape-chunk_01"))
         .and_then(|l| l.split_whitespace().next())
-        .unwrap_or_else(|| panic!("the bake is not running after its first checkpoint:\n{queue}"))
+        .unwrap_or_else(|| panic!("chunk 1 is not running after its first checkpoint:\n{queue}"))
         .to_string();
     slurm.run("scontrol", &["requeue", &job]);
     // Slurm holds a requeued job back for a while (its begin time moves on); an operator
@@ -511,16 +525,25 @@ fn a_slurm_task_requeued_mid_bake_resumes_from_its_checkpoint() {
         &["update", &format!("JobId={job}"), "StartTime=now"],
     );
     slurm.wait_settled(Duration::from_secs(400));
-    eprintln!(
-        "requeued {job} after its first checkpoint; done {:.1} s after the submission",
-        started.elapsed().as_secs_f64()
-    );
+    let elapsed = started.elapsed().as_secs_f64();
     let text = std::fs::read_to_string(bake.join("report.json")).unwrap();
     let report: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(report["frames_baked"], 200, "{text}");
+    // The requeued chunk's log (appended to, run after run) says where its second run went on
+    // from: a checkpoint inside the chunk, not its start.
+    let log = std::fs::read_to_string(plan.join("logs/drape-chunk_01_1.out")).unwrap();
+    let after: Vec<u64> = log
+        .lines()
+        .filter_map(|l| l.strip_prefix("resumed after frame "))
+        .filter_map(|l| l.split_whitespace().next()?.parse().ok())
+        .collect();
     assert!(
-        report["resumed"]["after_frame"].as_u64().unwrap_or(0) >= 10,
-        "not resumed from a checkpoint: {text}"
+        after.len() == 1 && (10..100).contains(&after[0]),
+        "chunk 1 did not resume from a checkpoint inside it:\n{log}"
+    );
+    eprintln!(
+        "requeued {job} after its first checkpoint, resumed after frame {}; done {elapsed:.1} s after the submission",
+        after[0]
     );
     let direct = d.join("direct");
     let out = drape(d, &["bake", "long.json", "--out", direct.to_str().unwrap()]);

@@ -18,11 +18,11 @@ fn frames_hash(dir: &Path) -> String {
     report["frames_hash"].as_str().unwrap().to_string()
 }
 
-/// Runs `plan/jobs.txt` in `d` with plain `bash`.
+/// Runs `d/plan/jobs.txt` with plain `bash` in the plan folder (its paths are relative to it).
 fn run_jobs(d: &Path) {
     let run = std::process::Command::new("bash")
-        .arg(d.join("plan/jobs.txt"))
-        .current_dir(d)
+        .arg("jobs.txt")
+        .current_dir(d.join("plan"))
         .output()
         .unwrap();
     assert!(
@@ -141,8 +141,8 @@ fn a_plan_with_a_character_builds_its_shell_once_and_every_bake_reuses_it() {
     assert!(yaml.contains("- name: shells") && yaml.contains("dependsOn: shells"));
     for list in ["shells.txt", "jobs.txt"] {
         let run = std::process::Command::new("bash")
-            .arg(d.join("plan").join(list))
-            .current_dir(d)
+            .arg(list)
+            .current_dir(d.join("plan"))
             .output()
             .unwrap();
         assert!(
@@ -269,7 +269,7 @@ fn a_wedge_value_may_be_an_array_and_status_reads_the_reports() {
     let line = first.lines().next().unwrap();
     let run = std::process::Command::new("bash")
         .args(["-c", line])
-        .current_dir(d)
+        .current_dir(d.join("plan"))
         .output()
         .unwrap();
     assert!(run.status.success(), "{}", common::stderr(&run));
@@ -288,4 +288,100 @@ fn a_wedge_value_may_be_an_array_and_status_reads_the_reports() {
         "{}",
         String::from_utf8_lossy(&all.stdout)
     );
+}
+
+#[test]
+fn a_plan_moved_with_its_project_runs_where_it_lands() {
+    // Issue 35 item 9: no list names the folder the plan was made in (its paths are relative to
+    // the plan folder, the drape is `$DRAPE` or the planner's), and the variants' scenes reach
+    // the project's meshes by relative paths: the project moved with its plan (as a worker
+    // that mounts it elsewhere sees it) bakes from `run_line.sh`, run from anywhere, to the
+    // frames of a direct bake.
+    let dir = common::temp_dir();
+    let project = dir.path().join("project");
+    let stool = Path::new(env!("CARGO_MANIFEST_DIR")).join("characters/mannequin/stool.obj");
+    std::fs::create_dir_all(project.join("shot/assets")).unwrap();
+    std::fs::copy(&stool, project.join("shot/assets/stool.obj")).unwrap();
+    common::write(
+        &project.join("shot"),
+        "scene.json",
+        r#"{ "name": "onstool", "frames": 2, "backend": "cpu",
+             "garments": [{ "resolution": [10, 10], "size": [0.8, 0.8], "position": [0, 0.7, -0.46] }],
+             "characters": [{ "name": "stool", "file": "assets/stool.obj" }] }"#,
+    );
+    let out = common::drape(
+        &project,
+        &[
+            "plan",
+            "shot/scene.json",
+            "--wedge",
+            "solver.iterations=2,4",
+            "--out",
+            "farm/plan",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let planned_at = project.display().to_string();
+    for entry in walk(&project.join("farm/plan")) {
+        let text = std::fs::read_to_string(&entry).unwrap();
+        assert!(
+            !text.contains(&planned_at),
+            "{} names the folder it was planned in:\n{text}",
+            entry.display()
+        );
+    }
+    let moved = dir.path().join("elsewhere");
+    std::fs::rename(&project, &moved).unwrap();
+    let plan = moved.join("farm/plan");
+    let run_line = |list: &str, n: usize, drape: Option<&str>| {
+        let mut c = std::process::Command::new("bash");
+        c.arg(plan.join("run_line.sh"))
+            .arg(plan.join(list))
+            .arg(n.to_string())
+            .current_dir(dir.path());
+        if let Some(d) = drape {
+            c.env("DRAPE", d);
+        }
+        c.output().unwrap()
+    };
+    // A worker's `$DRAPE` is the drape that runs.
+    let elsewhere = run_line("jobs.txt", 1, Some("/nonexistent/drape"));
+    assert_eq!(
+        elsewhere.status.code(),
+        Some(127),
+        "{}",
+        common::stderr(&elsewhere)
+    );
+    for (list, n) in [("shells.txt", 1), ("jobs.txt", 1), ("jobs.txt", 2)] {
+        let run = run_line(list, n, Some(env!("CARGO_BIN_EXE_drape")));
+        assert!(run.status.success(), "{list} {n}: {}", common::stderr(&run));
+    }
+    let direct = common::drape(
+        &moved,
+        &[
+            "bake",
+            "shot/scene.json",
+            "--iterations",
+            "4",
+            "--out",
+            "direct",
+        ],
+    );
+    assert!(direct.status.success(), "{}", common::stderr(&direct));
+    let planned = plan.join("bakes/onstool_solver.iterations-4");
+    assert_eq!(frames_hash(&planned), frames_hash(&moved.join("direct")));
+}
+
+/// Every file under `dir`.
+fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            files.extend(walk(&path));
+        } else {
+            files.push(path);
+        }
+    }
+    files
 }

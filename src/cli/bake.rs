@@ -50,6 +50,12 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
         r.particles,
         r.ms_per_frame.median,
     );
+    if let Some(r) = &r.resumed {
+        println!(
+            "resumed after frame {} from {} ({:.0} ms to replay)",
+            r.after_frame, r.checkpoint, r.replay_ms
+        );
+    }
     for c in &r.characters {
         println!(
             "character {}: {:.2} m tall, {} shell particles of radius {} m ({})",

@@ -1,7 +1,9 @@
 //! `drape plan SCENE --wedge FIELD=V1,V2 … --out DIR`: a render-farm plan. Each combination of
 //! the wedges' values becomes a scene (`DIR/scenes/<name>.json`, the original with those fields
-//! set and its relative paths made absolute) and one bake command (a line of `DIR/jobs.txt`,
-//! which GNU parallel, a Slurm array or `bash` runs as it is). With characters, a first step
+//! set and its relative paths made relative to the plan's `scenes/` folder) and one bake
+//! command (a line of `DIR/jobs.txt`, which GNU parallel, a Slurm array or `bash` runs as it is
+//! from inside `DIR`: every path in the lists is relative to it, so a plan moved, or seen at
+//! another path on a worker, still runs). With characters, a first step
 //! (`DIR/shells.txt`, `drape shell SCENE --out DIR/shells`) builds their shells into one cache
 //! folder that every bake then reuses (`--shell-cache`). `DIR/job.yaml` is the same plan as an
 //! Open Job Description template (its paths through the job parameter `PlanDir`), and the
@@ -102,9 +104,12 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
                 .map(|s| s.to_string_lossy().into_owned())
         })
         .unwrap_or_else(|| "scene".into());
+    let plan_scenes = std::path::absolute(&args.out)
+        .map_err(|e| Error::io(&args.out, "cannot resolve", e))?
+        .join("scenes");
     let mut variants = Vec::new();
     for (index, combination) in combinations(&wedges).into_iter().enumerate() {
-        let mut scene = absolute_paths(original.clone(), &base);
+        let mut scene = rebased_paths(original.clone(), &base, &plan_scenes);
         let mut name = stem.clone();
         for (wedge, value) in wedges.iter().zip(&combination) {
             set(&mut scene, &wedge.field, value.clone()).map_err(|reason| {
@@ -144,11 +149,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
     }
     write_plan(&args.out, &stem, &variants, args.cpus)?;
     println!(
-        "planned {count} bake{s} into {plan}: run them with `bash {jobs}` (in order, one at a time), `bash {plan}/parallel.sh` (GNU parallel here), `bash {plan}/slurm.sh` (Slurm) or {plan}/job.yaml (OpenJD); `drape plan --status {plan}` says how each went",
+        "planned {count} bake{s} into {plan}: run them with `cd {plan} && bash jobs.txt` (in order, one at a time), `bash {plan}/parallel.sh` (GNU parallel here), `bash {plan}/slurm.sh` (Slurm) or {plan}/job.yaml (OpenJD); `drape plan --status {plan}` says how each went",
         count = variants.len(),
         s = if variants.len() == 1 { "" } else { "s" },
         plan = args.out.display(),
-        jobs = args.out.join("jobs.txt").display()
     );
     Ok(0)
 }
@@ -274,13 +278,15 @@ fn set(scene: &mut Value, field: &str, value: Value) -> Result<(), String> {
     Ok(())
 }
 
-/// The scene with its characters' files and garments' meshes made absolute (the variants live
-/// in another folder).
-fn absolute_paths(mut scene: Value, base: &Path) -> Value {
+/// The scene with its characters' files and garments' meshes, relative to `base`, made
+/// relative to `scenes` instead (the variants live there): a project moved with its plan, or
+/// seen by a worker at another path, still finds them. Absolute paths stay as they are.
+fn rebased_paths(mut scene: Value, base: &Path, scenes: &Path) -> Value {
     let fix = |v: &mut Value| {
         if let Some(p) = v.as_str() {
             if Path::new(p).is_relative() {
-                *v = Value::String(base.join(p).display().to_string());
+                let rebased = relative(&base.join(p), scenes);
+                *v = Value::String(rebased.display().to_string());
             }
         }
     };
@@ -294,6 +300,35 @@ fn absolute_paths(mut scene: Value, base: &Path) -> Value {
         }
     }
     scene
+}
+
+/// `path` relative to the folder `from`, both absolute; `.` and `..` resolved by their names
+/// (a symbolic link's `..` is not followed).
+fn relative(path: &Path, from: &Path) -> PathBuf {
+    use std::path::Component;
+    fn normal(p: &Path) -> Vec<Component<'_>> {
+        let mut parts: Vec<Component> = Vec::new();
+        for c in p.components() {
+            match c {
+                Component::CurDir => {}
+                Component::ParentDir if matches!(parts.last(), Some(Component::Normal(_))) => {
+                    parts.pop();
+                }
+                other => parts.push(other),
+            }
+        }
+        parts
+    }
+    let (to, from) = (normal(path), normal(from));
+    let shared = to.iter().zip(&from).take_while(|(a, b)| a == b).count();
+    let mut out = PathBuf::new();
+    for _ in shared..from.len() {
+        out.push("..");
+    }
+    for c in &to[shared..] {
+        out.push(c);
+    }
+    out
 }
 
 fn value_text(v: &Value) -> String {
@@ -319,6 +354,19 @@ fn label(text: &str) -> String {
 /// `text` quoted for a POSIX shell.
 fn quoted(text: &str) -> String {
     format!("'{}'", text.replace('\'', r"'\''"))
+}
+
+/// The drape a list's line runs: `$DRAPE` where a worker sets it (drape is elsewhere there),
+/// else the one that planned, `exe`.
+fn drape_command(exe: &str) -> String {
+    let mut escaped = String::new();
+    for c in exe.chars() {
+        if matches!(c, '\\' | '"' | '$' | '`' | '}') {
+            escaped.push('\\');
+        }
+        escaped.push(c);
+    }
+    format!("\"${{DRAPE:-{escaped}}}\"")
 }
 
 /// Writes `DIR/scenes/*.json`, `DIR/jobs.txt`, `DIR/job.yaml` and the recipes through a
@@ -356,18 +404,16 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
         // array is variant i (Slurm's `aftercorr` pairs them): a variant with fewer chunks (a
         // wedge on `frames`) gets a line that does nothing.
         let mut chunk_lists: Vec<String> = vec![String::new(); chunk_count];
-        let cache = quoted(&out.join("shells").display().to_string());
+        // Every path in the lists is relative to the plan folder, which the recipes run them
+        // from.
+        let cache = "shells";
+        let exe_line = drape_command(&exe);
         for v in variants {
             let path = scenes.join(format!("{}.json", v.name));
             std::fs::write(&path, &v.text).map_err(|e| Error::io(&path, "cannot write", e))?;
-            let scene = quoted(
-                &out.join("scenes")
-                    .join(format!("{}.json", v.name))
-                    .display()
-                    .to_string(),
-            );
-            let bake = quoted(&out.join("bakes").join(&v.name).display().to_string());
-            let exe = quoted(&exe);
+            let scene = quoted(&format!("scenes/{}.json", v.name));
+            let bake = quoted(&format!("bakes/{}", v.name));
+            let exe = &exe_line;
             if v.characters {
                 shells.push_str(&format!("{exe} shell {scene} --out {cache}\n"));
             }
@@ -540,15 +586,18 @@ fn chunk_step(k: usize, name: &str, index: usize) -> String {
 /// GNU parallel, every variant to its end whatever another does. Both end by reporting each
 /// variant's state (`drape plan --status`).
 fn recipes(exe: &str, cpus: u32, chunks: usize) -> Vec<(&'static str, String)> {
-    let drape = quoted(exe);
+    let drape = drape_command(exe);
     let run_line = r#"#!/bin/bash
 # Runs line N of FILE (a list of this plan: shells.txt, jobs.txt, chunks/chunk_NN.txt) with
-# bash, so a scheduler's task is one line; fails when the file or the line is missing.
+# bash, so a scheduler's task is one line; fails when the file or the line is missing. The
+# line runs in the plan folder (this script's own), which its paths are relative to; a worker
+# whose drape is elsewhere sets DRAPE to it.
 set -euo pipefail
 file=$1 n=$2
 [ -f "$file" ] || { echo "drape plan: no file $file" >&2; exit 2; }
 line=$(sed -n "${n}p" "$file")
 [ -n "$line" ] || { echo "drape plan: $file has no line $n" >&2; exit 2; }
+cd "$(dirname "$0")"
 exec bash -c "$line"
 "#
     .to_string();
@@ -566,17 +615,18 @@ exec bash -c "$line"
 # storage every node sees). Each bake takes {cpus} CPUs (`drape plan --cpus`). One array per
 # list, sized from that list: the shells first (a bake builds any shell a failed task left
 # out), then the bakes, or each chunk after the same variant's previous one (`aftercorr`:
-# task i after task i, so a variant that fails stops only its own later chunks, which Slurm
-# then cancels instead of leaving them pending). Extra
-# arguments go to every `sbatch` (a partition, an account). Prints the job ids; when they
-# are done, `{drape} plan --status PLAN` says how each variant went.
+# task i after task i, so a variant that fails holds back only its own later chunks, which
+# stay pending with reason DependencyNeverSatisfied). A requeued task's log keeps every run
+# (`--open-mode=append`). Extra arguments go to every `sbatch` (a partition, an account).
+# Prints the job ids; when they are done, `drape plan --status PLAN` says how each variant
+# went.
 set -euo pipefail
 plan=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$plan/logs"
 submit() {{ # LIST DEPENDENCY
   local n
   n=$(wc -l < "$plan/$1")
-  sbatch --parsable "${{@:3}}" $2 --cpus-per-task={cpus} --array=1-"$n"     --job-name="drape-$(basename "$1" .txt)" --output="$plan/logs/%x_%a.out"     --wrap "bash '$plan/run_line.sh' '$plan/$1' \$SLURM_ARRAY_TASK_ID"
+  sbatch --parsable "${{@:3}}" $2 --cpus-per-task={cpus} --array=1-"$n" --open-mode=append     --job-name="drape-$(basename "$1" .txt)" --output="$plan/logs/%x_%a.out"     --wrap "bash '$plan/run_line.sh' '$plan/$1' \$SLURM_ARRAY_TASK_ID"
 }}
 after=""
 if [ -f "$plan/shells.txt" ]; then
@@ -590,7 +640,7 @@ for list in {lists}; do
   previous=$(submit "$list" "$after" "$@")
   echo "$list: job $previous"
 done
-echo "when they are done: {drape} plan --status $plan"
+echo "when they are done: drape plan --status $plan"
 "#
     );
     let parallel = format!(
@@ -599,18 +649,19 @@ echo "when they are done: {drape} plan --status $plan"
 # bakes fit on its cores (`drape plan --cpus`): the shells first, then the bakes, or chunk
 # after chunk. A bake that fails does not stop the others (a failed variant's later chunks
 # fail again at once); the exit code is that of `drape plan --status`: 0 when every variant
-# is done.
+# is done. The lists' paths are relative to the plan folder, where they run.
 set -uo pipefail
 plan=$(cd "$(dirname "$0")" && pwd)
+cd "$plan"
 at_once=$(( $(nproc) / {cpus} ))
 [ "$at_once" -ge 1 ] || at_once=1
 if [ -f "$plan/shells.txt" ]; then
-  parallel -j "$at_once" < "$plan/shells.txt" || echo "drape plan: a shell failed; its bakes build it" >&2
+  parallel -j "$at_once" < shells.txt || echo "drape plan: a shell failed; its bakes build it" >&2
 fi
 for list in {lists}; do
-  parallel -j "$at_once" < "$plan/$list" || echo "drape plan: a bake of $list failed" >&2
+  parallel -j "$at_once" < "$list" || echo "drape plan: a bake of $list failed" >&2
 done
-exec {drape} plan --status "$plan"
+exec {drape} plan --status .
 "#
     );
     vec![
@@ -684,7 +735,20 @@ fn status(dir: &Path) -> anyhow::Result<i32> {
 
 #[cfg(test)]
 mod tests {
-    use super::chunk_step;
+    use super::{chunk_step, relative};
+    use std::path::Path;
+
+    #[test]
+    fn a_path_relative_to_a_folder_climbs_out_of_it_by_name() {
+        let r = |a: &str, b: &str| relative(Path::new(a), Path::new(b)).display().to_string();
+        assert_eq!(
+            r("/p/shot/a.obj", "/p/farm/plan/scenes"),
+            "../../../shot/a.obj"
+        );
+        assert_eq!(r("/p/shot/./x/../a.obj", "/p/shot"), "a.obj");
+        assert_eq!(r("/p/plan/scenes/m.obj", "/p/plan/scenes"), "m.obj");
+        assert_eq!(r("/a.obj", "/p/q"), "../../a.obj");
+    }
 
     #[test]
     fn a_chunk_step_is_named_by_its_variant_while_the_name_fits() {
