@@ -4,6 +4,7 @@
 //! are made from the spool. Each is recorded in the report.
 
 use crate::error::Result;
+use crate::export::alembic::AlembicFile;
 use crate::export::gltf::{Container, GltfFile};
 use crate::export::obj::ObjFrames;
 use crate::export::pointcache::{write_usda, Pc2Files};
@@ -56,6 +57,17 @@ impl Exports {
             let rest = meshes.garment_surfaces(rest);
             let pc2 = Pc2Files::create(dir.join("pc2"), &meshes.info, rest, scene.frame_start)?;
             sinks.push(Box::new(pc2));
+        }
+        if spec.alembic {
+            let path = dir.join(format!("{}.abc", scene.name));
+            let abc = AlembicFile::create(
+                path,
+                &scene.name,
+                scene.fps,
+                &meshes.info,
+                spec.character_obj,
+            )?;
+            sinks.push(Box::new(abc));
         }
         let spool = (spec.usd || spec.preview)
             .then(|| Spool::create(dir.join(".frames.spool"), &meshes.info))
@@ -117,6 +129,13 @@ impl Exports {
             ..Outputs::default()
         };
         for w in written {
+            if w.format == "alembic" {
+                outputs.alembic = w
+                    .files
+                    .first()
+                    .and_then(|f| f.file_name())
+                    .map(|f| f.to_string_lossy().into_owned());
+            }
             if w.format == "gltf" {
                 outputs.gltf = w
                     .files

@@ -247,6 +247,9 @@ pub struct BakeArgs {
     /// Also write a USD layer with time-sampled points.
     #[arg(long)]
     pub usd: bool,
+    /// Also write an Alembic cache (`<scene>.abc`).
+    #[arg(long)]
+    pub alembic: bool,
     /// Continue the bake in `--out` from its latest checkpoint (after an interrupt, a crash or
     /// a pre-emption, or to add frames to a finished bake); from the first frame when there is
     /// none.

@@ -155,6 +155,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     o.wireframe |= args.wireframe;
     o.pc2 |= args.pc2;
     o.usd |= args.usd;
+    o.alembic |= args.alembic;
     if let Some((w, h)) = args.preview_size {
         o.preview_size = [w, h];
     }

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 /// Entries a bake writes into its folder (besides `report.json`): folders, and files by
 /// extension.
 const BAKE_FOLDERS: [&str; 4] = ["obj", "pc2", "preview", "checkpoints"];
-const BAKE_EXTENSIONS: [&str; 4] = ["glb", "gltf", "bin", "usda"];
+const BAKE_EXTENSIONS: [&str; 5] = ["glb", "gltf", "bin", "usda", "abc"];
 
 /// A temporary output folder that becomes `destination` on [`Staging::commit`] and is removed if
 /// dropped uncommitted.

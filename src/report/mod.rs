@@ -323,6 +323,8 @@ pub struct Outputs {
     pub pc2: Option<String>,
     /// The USD layer, if written.
     pub usd: Option<String>,
+    /// The Alembic cache, if written.
+    pub alembic: Option<String>,
     /// The contact sheet of the preview frames (`preview/frame_0001.png …` beside it), if rendered.
     pub preview: Option<String>,
 }

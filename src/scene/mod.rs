@@ -536,6 +536,9 @@ pub struct OutputSpec {
     pub pc2: bool,
     /// Write a USD layer (`<scene>.usda`) with time-sampled points. Default false.
     pub usd: bool,
+    /// Write an Alembic cache (`<scene>.abc`, Ogawa): a mesh per garment (and per character
+    /// with `character_obj`) sampled every frame. Default false.
+    pub alembic: bool,
     /// Render `preview/frame_0001.png …` and `preview/contact_sheet.png` (off-screen, any GPU
     /// adapter, software ones too). Default false.
     pub preview: bool,
@@ -566,6 +569,7 @@ impl Default for OutputSpec {
             gltf: GltfOutput::Glb,
             pc2: false,
             usd: false,
+            alembic: false,
             preview: false,
             preview_size: [1280, 720],
             wireframe: false,
