@@ -91,7 +91,7 @@ fn particles_tied_to_the_skin_ride_it() {
         out: dir.path().join("out"),
         scene_file: "test".into(),
         threads: Some(2),
-        progress: false,
+        progress: drape::bake::ProgressView::Hidden,
         shell_cache: Some(dir.path().join("cache")),
         resume: Default::default(),
         until: None,

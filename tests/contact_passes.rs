@@ -82,7 +82,7 @@ fn passes_survive_a_shell_that_shrinks_between_frames() {
         out: dir.path().join("out"),
         scene_file: "test".into(),
         threads: Some(2),
-        progress: false,
+        progress: drape::bake::ProgressView::Hidden,
         shell_cache: Some(dir.path().join("cache")),
         resume: Default::default(),
         until: None,

@@ -20,7 +20,7 @@ fn obj_frames_read_back_with_the_simulated_positions() {
             out: out.clone(),
             scene_file: "test".into(),
             threads: Some(2),
-            progress: false,
+            progress: drape::bake::ProgressView::Hidden,
             shell_cache: None,
             resume: Default::default(),
             until: None,

@@ -118,7 +118,7 @@ fn a_bake_in_the_wind_resumes_bit_for_bit() {
         out: dir.path().join(out),
         scene_file: "<test scene>".into(),
         threads: Some(2),
-        progress: false,
+        progress: drape::bake::ProgressView::Hidden,
         shell_cache: None,
         resume,
         until,

@@ -279,7 +279,7 @@ fn exercise(text: &str, base: &Path, bake_it: bool, tally: &mut Tally) -> Result
             out: dir.path().join("out"),
             scene_file: "fuzz.json".into(),
             threads: Some(1),
-            progress: false,
+            progress: drape::bake::ProgressView::Hidden,
             shell_cache: Some(dir.path().join("cache")),
             resume: Default::default(),
             until: None,

@@ -29,7 +29,7 @@ fn run(text: &str, out: &Path) -> drape::bake::Bake {
         out: out.to_path_buf(),
         scene_file: "test".into(),
         threads: Some(2),
-        progress: false,
+        progress: drape::bake::ProgressView::Hidden,
         shell_cache: Some(out.parent().unwrap().join("cache")),
         resume: Default::default(),
         until: None,

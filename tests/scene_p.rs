@@ -26,7 +26,7 @@ fn bake_without_files(
         out: dir.path().join("out"),
         scene_file: file.into(),
         threads: Some(2),
-        progress: false,
+        progress: drape::bake::ProgressView::Hidden,
         shell_cache: Some(dir.path().join("cache")),
         resume: Default::default(),
         until: None,

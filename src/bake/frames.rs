@@ -28,7 +28,7 @@ pub fn run(
     out: Out,
     mut progress: Progress,
     report: &mut Report,
-    bar: &indicatif::ProgressBar,
+    bar: &super::ticker::Ticker,
 ) -> Result<StageTimes> {
     let Out {
         meshes,

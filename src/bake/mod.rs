@@ -17,10 +17,13 @@ mod output;
 pub mod prepare;
 mod report;
 pub mod resume;
+mod ticker;
 
 pub use characters::{load_characters, shell_cache_dir, LoadedCharacter};
 pub use prepare::{simulation, Prepared};
 pub use resume::Resume;
+pub use ticker::ProgressView;
+use ticker::Ticker;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
@@ -47,8 +50,8 @@ pub struct BakeOptions {
     pub scene_file: String,
     /// Worker threads; `None` uses every core.
     pub threads: Option<usize>,
-    /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
-    pub progress: bool,
+    /// Where the progress goes (a bar on stderr, drawn only on a terminal; lines; nowhere).
+    pub progress: ProgressView,
     /// Folder of shell caches (`None`: [`shell_cache_dir`]).
     pub shell_cache: Option<PathBuf>,
     /// Start from a checkpoint of an earlier bake into `out` ([`resume`]).
@@ -336,7 +339,7 @@ fn run(
         report.backend.kind = "gpu";
         report.backend.adapter = Some(adapter);
     }
-    let bar = progress_bar(scene.frames as u64, options.progress);
+    let bar = Ticker::new(scene.frames as u64, options.progress);
     let mut around = frames::run(
         &mut sim,
         &mut backend,
@@ -350,7 +353,7 @@ fn run(
         &mut report,
         &bar,
     )?;
-    bar.finish_and_clear();
+    bar.finish();
     report.checkpoints = writer.as_ref().map(checkpoint::Writer::report);
     let closing = Instant::now();
     let baked = report.frames_baked as usize;
@@ -438,19 +441,3 @@ fn resumed_source(
     Ok(found)
 }
 
-fn progress_bar(frames: u64, show: bool) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    // The stderr target draws nothing when stderr is not a terminal.
-    let bar = indicatif::ProgressBar::with_draw_target(
-        Some(frames),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed} (eta {eta})")
-    {
-        bar.set_style(style);
-    }
-    bar
-}

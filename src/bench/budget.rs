@@ -156,7 +156,7 @@ fn bake_case(
         out: work.join("bake"),
         scene_file: format!("{label} ({})", setting.name),
         threads: None,
-        progress: false,
+        progress: crate::bake::ProgressView::Hidden,
         shell_cache: Some(work.join("cache")),
         resume: Resume::No,
         until: None,

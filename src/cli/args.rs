@@ -250,6 +250,10 @@ pub struct BakeArgs {
     /// Also write an Alembic cache (`<scene>.abc`).
     #[arg(long)]
     pub alembic: bool,
+    /// Print `drape: K of N frames` on stderr after each frame instead of drawing a bar (for a
+    /// program that shows its own progress, such as the Blender add-on).
+    #[arg(long)]
+    pub progress_lines: bool,
     /// Continue the bake in `--out` from its latest checkpoint (after an interrupt, a crash or
     /// a pre-emption, or to add frames to a finished bake); from the first frame when there is
     /// none.

@@ -173,7 +173,11 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         out,
         scene_file,
         threads: args.threads,
-        progress: true,
+        progress: if args.progress_lines {
+            drape::bake::ProgressView::Lines
+        } else {
+            drape::bake::ProgressView::Bar
+        },
         shell_cache: args.shell_cache.clone(),
         resume: match (args.from_frame, args.resume) {
             (Some(k), _) => Resume::From(k),

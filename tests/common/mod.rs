@@ -133,7 +133,7 @@ pub fn bake_options(out: &Path) -> drape::bake::BakeOptions {
         out: out.to_path_buf(),
         scene_file: "<test scene>".into(),
         threads: Some(2),
-        progress: false,
+        progress: drape::bake::ProgressView::Hidden,
         shell_cache: Some(out.with_file_name("cache")),
         resume: drape::bake::Resume::No,
         until: None,
