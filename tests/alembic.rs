@@ -1,8 +1,8 @@
 //! Alembic caches read back by the official library (PyAlembic, `alembic3d` from PyPI, which
 //! `.ci/deps` installs into target/alembic) through `tests/alembic_check.py`: every sample of
 //! every mesh equals the OBJ frame of that number (positions, bounds, faces read clockwise,
-//! UVs, normals), on one uniform time sampling from the shot's first frame: a sheet (and a rope,
-//! which the cache leaves out with a warning), a garment that tears (its faces change from the
+//! UVs, normals), on one uniform time sampling from the shot's first frame: a sheet and a rope
+//! (a linear curve), a garment that tears (its faces change from the
 //! frame they tear), scene P with its characters; and a bake stopped and resumed writes the
 //! same file, byte for byte.
 
@@ -67,10 +67,17 @@ fn a_sheets_cache_holds_every_frame_from_the_shots_first() {
     );
     let report = common::bake_report(d);
     assert_eq!(report["outputs"]["alembic"], "cache.abc");
-    let warnings = report["warnings"].to_string();
-    assert!(warnings.contains("rope is a rope"), "{warnings}");
     let found = check(&d.join("out/cache.abc"), &d.join("out/obj"));
     assert_eq!(found["meshes"].as_object().unwrap().len(), 1, "{found}");
+    // The rope: one linear, open curve through its 9 vertices, every frame.
+    let rope = &found["curves"]["rope"];
+    assert_eq!(rope["path"], "/rope/ropeShape");
+    assert_eq!(rope["samples"], 6);
+    assert!(rope["position_worst"].as_f64().unwrap() <= 1e-6, "{rope}");
+    assert_eq!(
+        rope["kinds"],
+        serde_json::json!(["kLinear kNonPeriodic [9]"])
+    );
     assert_matches_obj(&found, "sheet", 6, 1001, 24.0);
     let sheet = &found["meshes"]["sheet"];
     assert_eq!(sheet["path"], "/sheet/sheetShape");

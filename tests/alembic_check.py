@@ -3,7 +3,8 @@ compares every sample of every mesh with the OBJ frames drape wrote beside it.
 
     python alembic_check.py CACHE.abc OBJ_DIR
 
-Prints one JSON object: the archive's time samplings and, per mesh (named by its Xform), the
+Prints one JSON object: the archive's time samplings, each rope's curve against its OBJ
+polyline, and, per mesh (named by its Xform), the
 number of samples, their times, whether its faces are constant, and the worst differences
 from the OBJ frames (positions, UVs, normals, in their units) and how many samples' faces
 differ from the OBJ's. Faces: Alembic's are clockwise, so each face is read backwards.
@@ -43,9 +44,42 @@ def meshes(obj, found):
     return found
 
 
+def curves(obj, found):
+    for child in obj.children:
+        if AbcGeom.ICurves.matches(child.getMetaData()):
+            found.append(child)
+        curves(child, found)
+    return found
+
+
+def check_curves(archive, obj_dir, out):
+    """A rope: one linear, open curve through its vertices, each sample its OBJ frame."""
+    for curve in curves(archive.getTop(), []):
+        schema = AbcGeom.ICurves(curve.getParent(), curve.getName()).getSchema()
+        name = curve.getParent().getName()
+        ts = schema.getTimeSampling()
+        n = schema.getNumSamples()
+        fps = 1.0 / ts.getTimeSamplingType().getTimePerCycle()
+        r = {"path": curve.getFullName(), "samples": n, "first_time": ts.getSampleTime(0),
+             "last_time": ts.getSampleTime(n - 1), "position_worst": 0.0, "kinds": []}
+        for k in range(n):
+            t = ts.getSampleTime(k)
+            s = schema.getValue(Abc.ISampleSelector(t, Abc.ISampleSelector.TimeIndexType.kNearIndex))
+            v = obj_frame(os.path.join(obj_dir, "%s_%04d.obj" % (name, round(t * fps))))[0]
+            p = s.getPositions()
+            assert len(p) == len(v), (name, k)
+            r["position_worst"] = max(
+                [r["position_worst"]] + [math.dist((a[0], a[1], a[2]), b) for a, b in zip(p, v)]
+            )
+            kind = "%s %s %s" % (s.getType(), s.getWrap(), list(s.getCurvesNumVertices()))
+            if kind not in r["kinds"]:
+                r["kinds"].append(kind)
+        out["curves"][name] = r
+
+
 def check(path, obj_dir):
     archive = Abc.IArchive(path)
-    out = {"time_samplings": [], "meshes": {}}
+    out = {"time_samplings": [], "meshes": {}, "curves": {}}
     for i in range(archive.getNumTimeSamplings()):
         ts = archive.getTimeSampling(i)
         out["time_samplings"].append(
@@ -125,6 +159,7 @@ def check(path, obj_dir):
                 for a, b in zip(normals, vn):
                     r["normal_worst"] = max(r["normal_worst"], math.dist((a[0], a[1], a[2]), b))
         out["meshes"][name] = r
+    check_curves(archive, obj_dir, out)
     return out
 
 

@@ -47,24 +47,41 @@ fn the_blender_add_on_bakes_a_cape_that_plays_on_blenders_timeline() {
         let f = &r["frames"][frame];
         assert_eq!(f["vertices"][0], f["vertices"][1], "frame {frame}: {f}");
         let garment = f["garment"].as_f64().unwrap();
-        assert!(garment <= 1e-6, "frame {frame}: the cape Blender plays is {garment} m from drape's");
+        assert!(
+            garment <= 1e-6,
+            "frame {frame}: the cape Blender plays is {garment} m from drape's"
+        );
         // The clip drape baked, at the frame Blender shows it: within 0.1 mm (f32 clip times).
         let character = f["character"].as_f64().unwrap();
-        assert!(character <= 1e-4, "frame {frame}: the character is {character} m from drape's");
+        assert!(
+            character <= 1e-4,
+            "frame {frame}: the character is {character} m from drape's"
+        );
         moved = moved.max(f["cape_moves"].as_f64().unwrap());
     }
-    assert!(moved > 0.05, "the cape hardly moves ({moved} m): the case tests nothing");
+    assert!(
+        moved > 0.05,
+        "the cape hardly moves ({moved} m): the case tests nothing"
+    );
     // A character animated without an armature goes to drape as one OBJ per frame.
     for frame in ["1001", "1012", "1024"] {
         let f = &r["sequence"][frame];
         for key in ["garment", "character"] {
             let d = f[key].as_f64().unwrap();
-            assert!(d <= 1e-6, "frame sequence, frame {frame}: {key} {d} m from drape's");
+            assert!(
+                d <= 1e-6,
+                "frame sequence, frame {frame}: {key} {d} m from drape's"
+            );
         }
     }
     assert_eq!(r["cancelled_code"], 130, "{r}");
-    let after = r["resumed"]["after_frame"].as_u64().expect("resumed from a checkpoint");
-    assert!(after < 1024, "resumed after frame {after}: nothing was left to bake");
+    let after = r["resumed"]["after_frame"]
+        .as_u64()
+        .expect("resumed from a checkpoint");
+    assert!(
+        after < 1024,
+        "resumed after frame {after}: nothing was left to bake"
+    );
     assert_eq!(r["resumed_frames"], 24);
     let bad = r["bad_input"].as_str().unwrap_or("");
     assert!(

@@ -440,4 +440,3 @@ fn resumed_source(
     }
     Ok(found)
 }
-

@@ -22,6 +22,7 @@ use std::collections::HashMap;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pod {
     Bool = 0,
+    Uint8 = 1,
     Int32 = 6,
     Uint32 = 5,
     Float32 = 10,

@@ -1,7 +1,8 @@
 //! Alembic caches (`<scene>.abc`, Ogawa), the format every DCC and engine reads simulated
 //! garments from, written by drape itself as frames arrive (no Alembic library, no Python:
 //! `docs/formats.md` says why). One identity `Xform` per mesh with its `PolyMesh` under it
-//! (`/cloth/clothShape`, as Blender and Maya export), every property sampled once per frame
+//! (`/cloth/clothShape`, as Blender and Maya export; a rope's is a linear `Curves` through its
+//! vertices), every property sampled once per frame
 //! on one uniform time sampling of `1/fps` that starts at the first frame's number: positions,
 //! bounds, faces (a torn garment's new faces from the frame they tear), per-vertex normals and
 //! the garment's UVs (face-varying, indexed by its faces). Samples that repeat the one before
@@ -24,6 +25,8 @@ use std::path::PathBuf;
 
 const POLYMESH: &str = "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1;schemaObjTitle=AbcGeom_PolyMesh_v1:.geom";
 const GEOM: &str = "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1";
+const CURVES: &str = "schema=AbcGeom_Curve_v2;schemaBaseType=AbcGeom_GeomBase_v1;schemaObjTitle=AbcGeom_Curve_v2:.geom";
+const CURVES_GEOM: &str = "schema=AbcGeom_Curve_v2;schemaBaseType=AbcGeom_GeomBase_v1";
 const XFORM: &str = "schema=AbcGeom_Xform_v3;schemaObjTitle=AbcGeom_Xform_v3:.xform";
 const UV: &str = "arrayExtent=1;geoScope=fvr;interpretation=vector;isGeomParam=true;podExtent=2;podName=float32_t";
 const NORMALS: &str = "arrayExtent=1;geoScope=vtx;interpretation=normal;isGeomParam=true;podExtent=3;podName=float32_t";
@@ -37,7 +40,6 @@ pub struct AlembicFile {
     description: String,
     /// The shot frame of the first sample.
     first: Option<u32>,
-    warnings: Vec<String>,
 }
 
 /// One mesh's properties as they are sampled.
@@ -45,15 +47,29 @@ struct MeshCache {
     /// Index among the bake's meshes.
     mesh: usize,
     name: String,
-    /// Its faces now, as Alembic wants them (corners reversed).
-    indices: Vec<i32>,
     /// A still mesh's positions (it comes with the first frame only): kept from it.
     still: Option<Vec<Vec3>>,
     animated: bool,
-    uvs: Option<Vec<[f32; 2]>>,
     inherits: Property,
     bounds: Property,
     positions: Property,
+    shape: Shape,
+}
+
+/// What a mesh is in Alembic: a `PolyMesh`, or a rope's linear `Curves`.
+enum Shape {
+    Faces(Faces),
+    Curve {
+        vertices: Property,
+        basis_and_type: Property,
+    },
+}
+
+/// A `PolyMesh`'s own properties.
+struct Faces {
+    /// Its faces now, as Alembic wants them (corners reversed).
+    indices: Vec<i32>,
+    uvs: Option<Vec<[f32; 2]>>,
     face_indices: Property,
     face_counts: Property,
     normals: Property,
@@ -62,8 +78,8 @@ struct MeshCache {
 }
 
 impl AlembicFile {
-    /// Starts `path` for `meshes`: the garments with faces, and the characters when
-    /// `characters`; `fps`: the frame rate its time sampling counts in.
+    /// Starts `path` for `meshes`: the garments, and the characters when `characters`;
+    /// `fps`: the frame rate its time sampling counts in.
     pub fn create(
         path: PathBuf,
         scene: &str,
@@ -73,7 +89,6 @@ impl AlembicFile {
     ) -> Result<AlembicFile> {
         let archive = Archive::new(Ogawa::create(&path)?)?;
         let mut caches: Vec<MeshCache> = Vec::new();
-        let mut warnings = Vec::new();
         for (i, m) in meshes.iter().enumerate() {
             let wanted = match m.role {
                 Role::Garment => true,
@@ -83,25 +98,38 @@ impl AlembicFile {
             if !wanted {
                 continue;
             }
-            if m.triangles.is_empty() {
-                warnings.push(format!(
-                    "Alembic: {} is a rope, which the cache leaves out (drape writes no Alembic curves yet)",
-                    m.name
-                ));
-                continue;
-            }
             let mut name = object_name(&m.name);
             while caches.iter().any(|c| c.name == name) {
                 name.push('_');
             }
             let ts = SAMPLED;
+            let shape = if m.triangles.is_empty() {
+                Shape::Curve {
+                    vertices: Property::array("nVertices", "", Pod::Int32, 1, ts),
+                    basis_and_type: Property::scalar("curveBasisAndType", "", Pod::Uint8, 4, ts),
+                }
+            } else {
+                Shape::Faces(Faces {
+                    indices: clockwise(&m.triangles),
+                    uvs: m.uvs.clone(),
+                    face_indices: Property::array(".faceIndices", "", Pod::Int32, 1, ts),
+                    face_counts: Property::array(".faceCounts", "", Pod::Int32, 1, ts),
+                    normals: Property::array("N", NORMALS, Pod::Float32, 3, ts),
+                    uv_values: m
+                        .uvs
+                        .as_ref()
+                        .map(|_| Property::array(".vals", UV, Pod::Float32, 2, ts)),
+                    uv_indices: m
+                        .uvs
+                        .as_ref()
+                        .map(|_| Property::array(".indices", "", Pod::Uint32, 1, ts)),
+                })
+            };
             caches.push(MeshCache {
                 mesh: i,
                 name,
-                indices: clockwise(&m.triangles),
                 still: None,
                 animated: m.animated,
-                uvs: m.uvs.clone(),
                 inherits: Property::scalar(".inherits", "", Pod::Bool, 1, ts),
                 bounds: Property::scalar(".selfBnds", "interpretation=box", Pod::Float64, 6, ts),
                 positions: Property::array(
@@ -111,17 +139,7 @@ impl AlembicFile {
                     3,
                     ts,
                 ),
-                face_indices: Property::array(".faceIndices", "", Pod::Int32, 1, ts),
-                face_counts: Property::array(".faceCounts", "", Pod::Int32, 1, ts),
-                normals: Property::array("N", NORMALS, Pod::Float32, 3, ts),
-                uv_values: m
-                    .uvs
-                    .as_ref()
-                    .map(|_| Property::array(".vals", UV, Pod::Float32, 2, ts)),
-                uv_indices: m
-                    .uvs
-                    .as_ref()
-                    .map(|_| Property::array(".indices", "", Pod::Uint32, 1, ts)),
+                shape,
             });
         }
         Ok(AlembicFile {
@@ -131,7 +149,6 @@ impl AlembicFile {
             fps: f64::from(fps),
             description: scene.replace([';', '='], "_"),
             first: None,
-            warnings,
         })
     }
 }
@@ -176,6 +193,59 @@ impl MeshCache {
         self.bounds.set(archive, bytemuck::cast_slice(&bounds), 1)?;
         self.positions
             .set(archive, bytemuck::cast_slice(positions), positions.len())?;
+        match &mut self.shape {
+            Shape::Faces(f) => f.sample(archive, positions),
+            Shape::Curve {
+                vertices,
+                basis_and_type,
+            } => {
+                // One linear, open curve through every vertex (as the OBJ frames' polyline).
+                vertices.set(archive, &(positions.len() as i32).to_le_bytes(), 1)?;
+                basis_and_type.set(archive, &[LINEAR, NON_PERIODIC, NO_BASIS, 1], 1)
+            }
+        }
+    }
+
+    /// Writes the mesh's two objects: the `Xform` (returned: name, metadata, group) and the
+    /// `PolyMesh` or `Curves` under it.
+    fn write(self, archive: &mut Archive) -> Result<(String, String, u64)> {
+        let (schema, mut geom) = match self.shape {
+            Shape::Faces(_) => (POLYMESH, Compound::new(".geom", GEOM)),
+            Shape::Curve { .. } => (CURVES, Compound::new(".geom", CURVES_GEOM)),
+        };
+        for p in [self.bounds, self.positions] {
+            geom.properties.push(Node::Property(p));
+        }
+        match self.shape {
+            Shape::Faces(f) => f.write(&mut geom),
+            Shape::Curve {
+                vertices,
+                basis_and_type,
+            } => {
+                geom.properties.push(Node::Property(vertices));
+                geom.properties.push(Node::Property(basis_and_type));
+            }
+        }
+        let mut shape = Compound::new("", "");
+        shape.properties.push(Node::Compound(geom));
+        let shape = archive.object(shape, &[])?;
+        let mut xform = Compound::new(".xform", "schema=AbcGeom_Xform_v3");
+        xform.properties.push(Node::Property(self.inherits));
+        let mut top = Compound::new("", "");
+        top.properties.push(Node::Compound(xform));
+        let shape_name = format!("{}Shape", self.name);
+        let group = archive.object(top, &[(shape_name, schema.to_string(), shape)])?;
+        Ok((self.name, XFORM.to_string(), group))
+    }
+}
+
+/// `curveBasisAndType`: a linear (not cubic), open curve, no basis.
+const LINEAR: u8 = 1;
+const NON_PERIODIC: u8 = 0;
+const NO_BASIS: u8 = 0;
+
+impl Faces {
+    fn sample(&mut self, archive: &mut Archive, positions: &[Vec3]) -> Result<()> {
         let faces = self.indices.len() / 3;
         self.face_indices.set(
             archive,
@@ -205,18 +275,10 @@ impl MeshCache {
         Ok(())
     }
 
-    /// Writes the mesh's two objects: the `Xform` (returned: name, metadata, group) and the
-    /// `PolyMesh` under it.
-    fn write(self, archive: &mut Archive) -> Result<(String, String, u64)> {
-        let mut geom = Compound::new(".geom", GEOM);
-        for p in [
-            self.bounds,
-            self.positions,
-            self.face_indices,
-            self.face_counts,
-        ] {
-            geom.properties.push(Node::Property(p));
-        }
+    /// Adds the faces, the UVs (an indexed geometry parameter) and the normals to `geom`.
+    fn write(self, geom: &mut Compound) {
+        geom.properties.push(Node::Property(self.face_indices));
+        geom.properties.push(Node::Property(self.face_counts));
         if let (Some(values), Some(indices)) = (self.uv_values, self.uv_indices) {
             let mut uv = Compound::new("uv", UV);
             uv.properties.push(Node::Property(values));
@@ -224,16 +286,6 @@ impl MeshCache {
             geom.properties.push(Node::Compound(uv));
         }
         geom.properties.push(Node::Property(self.normals));
-        let mut shape = Compound::new("", "");
-        shape.properties.push(Node::Compound(geom));
-        let shape = archive.object(shape, &[])?;
-        let mut xform = Compound::new(".xform", "schema=AbcGeom_Xform_v3");
-        xform.properties.push(Node::Property(self.inherits));
-        let mut top = Compound::new("", "");
-        top.properties.push(Node::Compound(xform));
-        let shape_name = format!("{}Shape", self.name);
-        let group = archive.object(top, &[(shape_name, POLYMESH.to_string(), shape)])?;
-        Ok((self.name, XFORM.to_string(), group))
     }
 }
 
@@ -247,8 +299,12 @@ impl FrameSink for AlembicFile {
     }
 
     fn faces(&mut self, mesh: usize, _from: usize, triangles: &[[u32; 3]]) -> Result<()> {
-        if let Some(m) = self.meshes.iter_mut().find(|m| m.mesh == mesh) {
-            m.indices = clockwise(triangles);
+        if let Some(MeshCache {
+            shape: Shape::Faces(f),
+            ..
+        }) = self.meshes.iter_mut().find(|m| m.mesh == mesh)
+        {
+            f.indices = clockwise(triangles);
         }
         Ok(())
     }
@@ -261,7 +317,6 @@ impl FrameSink for AlembicFile {
             fps,
             description,
             first,
-            warnings,
         } = *self;
         let mut objects = Vec::new();
         for m in meshes {
@@ -280,7 +335,7 @@ impl FrameSink for AlembicFile {
         Ok(vec![Written {
             format: "alembic",
             files: vec![path],
-            warnings,
+            warnings: Vec::new(),
         }])
     }
 }
