@@ -58,7 +58,7 @@ struct MeshCache {
 
 /// What a mesh is in Alembic: a `PolyMesh`, or a rope's linear `Curves`.
 enum Shape {
-    Faces(Faces),
+    Faces(Box<Faces>),
     Curve {
         vertices: Property,
         basis_and_type: Property,
@@ -109,7 +109,7 @@ impl AlembicFile {
                     basis_and_type: Property::scalar("curveBasisAndType", "", Pod::Uint8, 4, ts),
                 }
             } else {
-                Shape::Faces(Faces {
+                Shape::Faces(Box::new(Faces {
                     indices: clockwise(&m.triangles),
                     uvs: m.uvs.clone(),
                     face_indices: Property::array(".faceIndices", "", Pod::Int32, 1, ts),
@@ -123,7 +123,7 @@ impl AlembicFile {
                         .uvs
                         .as_ref()
                         .map(|_| Property::array(".indices", "", Pod::Uint32, 1, ts)),
-                })
+                }))
             };
             caches.push(MeshCache {
                 mesh: i,
