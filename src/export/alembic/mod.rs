@@ -59,10 +59,13 @@ struct MeshCache {
 /// What a mesh is in Alembic: a `PolyMesh`, or a rope's linear `Curves`.
 enum Shape {
     Faces(Box<Faces>),
-    Curve {
-        vertices: Property,
-        basis_and_type: Property,
-    },
+    Curve(Box<Curve>),
+}
+
+/// A rope's `Curves` properties: its vertex count and its kind (linear, open).
+struct Curve {
+    vertices: Property,
+    basis_and_type: Property,
 }
 
 /// A `PolyMesh`'s own properties.
@@ -104,10 +107,10 @@ impl AlembicFile {
             }
             let ts = SAMPLED;
             let shape = if m.triangles.is_empty() {
-                Shape::Curve {
+                Shape::Curve(Box::new(Curve {
                     vertices: Property::array("nVertices", "", Pod::Int32, 1, ts),
                     basis_and_type: Property::scalar("curveBasisAndType", "", Pod::Uint8, 4, ts),
-                }
+                }))
             } else {
                 Shape::Faces(Box::new(Faces {
                     indices: clockwise(&m.triangles),
@@ -195,10 +198,11 @@ impl MeshCache {
             .set(archive, bytemuck::cast_slice(positions), positions.len())?;
         match &mut self.shape {
             Shape::Faces(f) => f.sample(archive, positions),
-            Shape::Curve {
-                vertices,
-                basis_and_type,
-            } => {
+            Shape::Curve(c) => {
+                let Curve {
+                    vertices,
+                    basis_and_type,
+                } = c.as_mut();
                 // One linear, open curve through every vertex (as the OBJ frames' polyline).
                 vertices.set(archive, &(positions.len() as i32).to_le_bytes(), 1)?;
                 basis_and_type.set(archive, &[LINEAR, NON_PERIODIC, NO_BASIS, 1], 1)
@@ -211,19 +215,16 @@ impl MeshCache {
     fn write(self, archive: &mut Archive) -> Result<(String, String, u64)> {
         let (schema, mut geom) = match self.shape {
             Shape::Faces(_) => (POLYMESH, Compound::new(".geom", GEOM)),
-            Shape::Curve { .. } => (CURVES, Compound::new(".geom", CURVES_GEOM)),
+            Shape::Curve(_) => (CURVES, Compound::new(".geom", CURVES_GEOM)),
         };
         for p in [self.bounds, self.positions] {
             geom.properties.push(Node::Property(p));
         }
         match self.shape {
             Shape::Faces(f) => f.write(&mut geom),
-            Shape::Curve {
-                vertices,
-                basis_and_type,
-            } => {
-                geom.properties.push(Node::Property(vertices));
-                geom.properties.push(Node::Property(basis_and_type));
+            Shape::Curve(c) => {
+                geom.properties.push(Node::Property(c.vertices));
+                geom.properties.push(Node::Property(c.basis_and_type));
             }
         }
         let mut shape = Compound::new("", "");
