@@ -208,6 +208,7 @@ fn the_poncho_meets_its_targets_in_every_frame_with_nothing_inside_the_mannequin
     scene.accuracy = Some(drape::scene::AccuracySpec {
         max_strain: Some(0.10),
         max_penetration: Some(0.005),
+        max_shear: None,
     });
     let report = run(&scene);
     let budget = report.budget.as_ref().unwrap();

@@ -281,6 +281,7 @@ fn a_bake_with_accuracy_targets_resumes_bit_for_bit_within_a_settling_raise() {
     scene.accuracy = Some(drape::scene::AccuracySpec {
         max_strain: Some(0.10),
         max_penetration: None,
+        max_shear: None,
     });
     scene.output.obj = false;
     scene.output.gltf = GltfOutput::None;

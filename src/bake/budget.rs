@@ -58,12 +58,36 @@ pub struct FrameBudget {
     pub attempts: u32,
     /// Why the budget changed before or during this frame (empty when it did not).
     pub why: String,
-    /// Its worst structural strain and deepest penetration [m].
+    /// Its worst structural strain, deepest penetration [m] and worst cell shear [degrees].
     pub max_strain: f64,
     pub deepest_penetration: f32,
+    #[serde(default)]
+    pub max_shear_deg: f64,
     /// Kinetic energy the frame's settling took out [J] (0 when it did not settle).
     #[serde(default)]
     pub settled_joules: f64,
+}
+
+impl FrameBudget {
+    /// What the targets judged this frame by.
+    pub fn reading(&self) -> Reading {
+        Reading {
+            strain: self.max_strain,
+            depth: self.deepest_penetration,
+            shear: self.max_shear_deg,
+        }
+    }
+}
+
+/// What the targets judge a frame by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reading {
+    /// The worst structural strain.
+    pub strain: f64,
+    /// The deepest a free particle is inside a collider, a shell or a character's mesh [m].
+    pub depth: f32,
+    /// The worst |90° − angle| of a lattice cell [degrees].
+    pub shear: f64,
 }
 
 /// The targets and the ladder a scene's budget moves on.
@@ -71,6 +95,7 @@ pub struct FrameBudget {
 pub struct Targets {
     pub max_strain: Option<f64>,
     pub max_penetration: Option<f32>,
+    pub max_shear: Option<f64>,
     /// The levels this scene can use: the ladder with its own substeps or iterations fixed.
     pub levels: Vec<(u32, u32)>,
     /// Collision passes on (then as many as iterations) or off.
@@ -92,6 +117,7 @@ impl Targets {
         Some(Targets {
             max_strain: a.max_strain.map(f64::from),
             max_penetration: a.max_penetration,
+            max_shear: a.max_shear.map(f64::from),
             levels,
             passes: scene.solver.contact_passes > 1,
         })
@@ -104,8 +130,13 @@ impl Targets {
         sim.set_budget(substeps, iterations, passes);
     }
 
-    /// Which target a frame of `strain` and `depth` misses, if one does.
-    pub fn missed(&self, strain: f64, depth: f32) -> Option<String> {
+    /// Which target a frame that reads `r` misses, if one does.
+    pub fn missed(&self, r: Reading) -> Option<String> {
+        let Reading {
+            strain,
+            depth,
+            shear,
+        } = r;
         if !strain.is_finite() || !depth.is_finite() {
             return Some("the frame went unstable".into());
         }
@@ -123,21 +154,26 @@ impl Targets {
                 t * 1e3
             ));
         }
+        if let Some(t) = self.max_shear.filter(|&t| shear > t) {
+            return Some(format!("cell shear {shear:.2}° over the target {t:.2}°"));
+        }
         None
     }
 
-    /// True when a frame of `strain` and `depth` came within a quarter of a target: the next
-    /// frame gets the next budget before it misses (a frame that misses is simulated again from
-    /// its start, which cannot undo what a cheap budget let happen in the frames before it).
-    pub fn close(&self, strain: f64, depth: f32) -> bool {
-        self.max_strain.is_some_and(|t| strain > 0.75 * t)
-            || self.max_penetration.is_some_and(|t| depth > 0.75 * t)
+    /// True when a frame that reads `r` came within a quarter of a target: the next frame gets
+    /// the next budget before it misses (a frame that misses is simulated again from its start,
+    /// which cannot undo what a cheap budget let happen in the frames before it).
+    pub fn close(&self, r: Reading) -> bool {
+        self.max_strain.is_some_and(|t| r.strain > 0.75 * t)
+            || self.max_penetration.is_some_and(|t| r.depth > 0.75 * t)
+            || self.max_shear.is_some_and(|t| r.shear > 0.75 * t)
     }
 
-    /// True when a frame of `strain` and `depth` met both targets with half the margin to spare.
-    pub fn calm(&self, strain: f64, depth: f32) -> bool {
-        self.max_strain.is_none_or(|t| strain <= 0.5 * t)
-            && self.max_penetration.is_none_or(|t| depth <= 0.5 * t)
+    /// True when a frame that reads `r` met every target with half the margin to spare.
+    pub fn calm(&self, r: Reading) -> bool {
+        self.max_strain.is_none_or(|t| r.strain <= 0.5 * t)
+            && self.max_penetration.is_none_or(|t| r.depth <= 0.5 * t)
+            && self.max_shear.is_none_or(|t| r.shear <= 0.5 * t)
     }
 }
 
@@ -147,13 +183,15 @@ pub struct BudgetReport {
     /// The targets.
     pub max_strain: Option<f64>,
     pub max_penetration: Option<f32>,
+    pub max_shear: Option<f64>,
     /// The levels the budget could take, cheapest first: (substeps, iterations).
     pub levels: Vec<(u32, u32)>,
     /// True when every frame met the targets.
     pub met: bool,
-    /// The worst strain and deepest penetration [m] over the bake.
+    /// The worst strain, deepest penetration [m] and worst cell shear [degrees] over the bake.
     pub max_strain_reached: f64,
     pub deepest_penetration_reached: f32,
+    pub max_shear_reached: f64,
     /// Every frame's budget.
     pub per_frame: Vec<FrameBudget>,
 }
@@ -163,17 +201,15 @@ impl BudgetReport {
         BudgetReport {
             max_strain: targets.max_strain,
             max_penetration: targets.max_penetration,
+            max_shear: targets.max_shear,
             levels: targets.levels.clone(),
-            met: frames.iter().all(|f| {
-                targets
-                    .missed(f.max_strain, f.deepest_penetration)
-                    .is_none()
-            }),
+            met: frames.iter().all(|f| targets.missed(f.reading()).is_none()),
             max_strain_reached: frames.iter().map(|f| f.max_strain).fold(0.0, f64::max),
             deepest_penetration_reached: frames
                 .iter()
                 .map(|f| f.deepest_penetration)
                 .fold(0.0, f32::max),
+            max_shear_reached: frames.iter().map(|f| f.max_shear_deg).fold(0.0, f64::max),
             per_frame: frames.to_vec(),
         }
     }

@@ -1,7 +1,7 @@
 //! The frame loop: step, tear, measure and write each frame as it is made (with a checkpoint
 //! now and then), until the last, until the simulation becomes unstable or until a signal.
 
-use super::budget::{BudgetReport, FrameBudget, Targets, CALM_FRAMES, SETTLE_FRAMES};
+use super::budget::{BudgetReport, FrameBudget, Reading, Targets, CALM_FRAMES, SETTLE_FRAMES};
 use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics, preroll_mesh, preroll_strain};
@@ -236,13 +236,13 @@ fn step_within(
     let before = sim.snapshot();
     let mut attempts = 1;
     let mut why = std::mem::take(&mut progress.budget.pending_why);
-    let (strain, depth) = loop {
+    let reading = loop {
         if progress.budget.settle > 0 {
             sim.settle_frame();
         }
         backend.step_frame(sim)?;
-        let (strain, depth) = accuracy_of(sim, meshes, index);
-        match t.missed(strain, depth) {
+        let reading = accuracy_of(sim, meshes, index);
+        match t.missed(reading) {
             Some(reason) if progress.budget.level + 1 < t.levels.len() => {
                 sim.restore(&before)
                     .expect("a simulation takes its own snapshot");
@@ -254,7 +254,7 @@ fn step_within(
                 why = format!("{reason}: raised to {s} substeps × {i} iterations");
                 attempts += 1;
             }
-            _ => break (strain, depth),
+            _ => break reading,
         }
     };
     let settings = sim.solver_settings();
@@ -265,8 +265,9 @@ fn step_within(
         contact_passes: settings.contact_passes,
         attempts,
         why,
-        max_strain: strain,
-        deepest_penetration: depth,
+        max_strain: reading.strain,
+        deepest_penetration: reading.depth,
+        max_shear_deg: reading.shear,
         settled_joules: if progress.budget.settle > 0 {
             sim.settled_energy()
         } else {
@@ -275,14 +276,14 @@ fn step_within(
     });
     progress.budget.settle = progress.budget.settle.saturating_sub(1);
     let top = t.levels.len() - 1;
-    if t.close(strain, depth) && progress.budget.level < top {
+    if t.close(reading) && progress.budget.level < top {
         progress.budget.level += 1;
         progress.budget.calm = 0;
         progress.budget.settle = SETTLE_FRAMES;
         t.apply(sim, progress.budget.level);
         progress.budget.pending_why =
             "the last frame came within a quarter of a target: raised".into();
-    } else if t.calm(strain, depth) {
+    } else if t.calm(reading) {
         progress.budget.calm += 1;
         if progress.budget.calm >= CALM_FRAMES && progress.budget.level > 0 {
             progress.budget.level -= 1;
@@ -297,9 +298,9 @@ fn step_within(
     Ok(())
 }
 
-/// The worst structural strain of `sim` now and the deepest any free particle is inside a
-/// collider, a shell or a character's mesh (at baked frame `index`) [m].
-fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> (f64, f32) {
+/// The worst structural strain and cell shear of `sim` now and the deepest any free particle is
+/// inside a collider, a shell or a character's mesh (at baked frame `index`) [m].
+fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> Reading {
     let free = sim.free_positions();
     let deepest = solid_penetrations(sim, &free)
         .into_iter()
@@ -310,7 +311,12 @@ fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> (f64, f32) {
         )
         .map(|p| p.deepest)
         .fold(0.0f32, f32::max);
-    (sim.constraint_error().max_strain, deepest)
+    let error = sim.constraint_error();
+    Reading {
+        strain: error.max_strain,
+        depth: deepest,
+        shear: error.max_shear_deg,
+    }
 }
 
 /// The `free` particles inside each collider, then inside each character's shell.

@@ -59,6 +59,7 @@ fn settings(label: &str) -> Vec<Setting> {
         Some(AccuracySpec {
             max_strain: Some(strain),
             max_penetration: depth,
+            max_shear: None,
         })
     };
     let mut v = vec![

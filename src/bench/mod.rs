@@ -80,6 +80,8 @@ pub struct FrameTiming {
     pub ms_per_frame_mean: f64,
     pub mean_strain: f64,
     pub max_strain: f64,
+    /// Mean |90° − angle| of the lattice's cells [degrees].
+    pub mean_shear_deg: f64,
     /// Particles inside any collider after the last frame.
     pub inside: usize,
     /// Deepest of them [m].
@@ -125,6 +127,7 @@ pub fn time_frames(
             ms_per_frame_mean: timing.mean,
             mean_strain: error.mean_strain,
             max_strain: error.max_strain,
+            mean_shear_deg: error.mean_shear_deg,
             inside: pen.iter().map(|p| p.inside).sum(),
             deepest: pen.iter().map(|p| p.deepest).fold(0.0, f32::max),
             stable: stable && error.max_strain <= 1.0,

@@ -209,6 +209,10 @@ pub struct SceneArgs {
     /// character [m].
     #[arg(long, allow_hyphen_values = true)]
     pub max_penetration: Option<f32>,
+    /// Accuracy target: the largest |90° − angle| any lattice cell may have [degrees] (needs
+    /// shear springs).
+    #[arg(long, allow_hyphen_values = true)]
+    pub max_shear: Option<f32>,
 }
 
 #[derive(Args, Debug)]

@@ -29,7 +29,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
     let e = reference::load(reference::ENLARGED_CLOTH, "enlarged_cloth.json");
     let h = reference::load(reference::HANGING_CLOTH, "hanging_cloth.json");
     let s = reference::load(reference::SPHERE_DRAPE, "sphere_drape.json");
-    let mut csv = String::from("scene,solver,threads,iterations_or_frames,us_per_iteration,ms_per_frame_median,total_squared_error,mean_strain,max_strain,inside,deepest_m,stable\n");
+    let mut csv = String::from("scene,solver,threads,iterations_or_frames,us_per_iteration,ms_per_frame_median,total_squared_error,mean_strain,max_strain,inside,deepest_m,stable,mean_shear_deg\n");
 
     println!(
         "scene E ({} iterations from the 5x-stretched start):",
@@ -48,7 +48,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             );
             let _ = writeln!(
                 csv,
-                "E,{},{t},{},{:.3},,{:e},,,,,",
+                "E,{},{t},{},{:.3},,{:e},,,,,,",
                 r.solver, r.iterations, r.us_per_iteration, r.residual
             );
         }
@@ -63,12 +63,13 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             scene.solver.iterations
         );
         println!(
-            "  {:<8} {:>7} {:>10} {:>12} {:>12} {:>8} {:>10} {:>7}",
+            "  {:<8} {:>7} {:>10} {:>12} {:>12} {:>11} {:>8} {:>10} {:>7}",
             "solver",
             "threads",
             "ms/frame",
             "mean strain",
             "max strain",
+            "cell shear",
             "inside",
             "deepest",
             "stable"
@@ -77,19 +78,20 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             for kind in SOLVERS {
                 let r = time_frames(scene, kind, t, frames)?;
                 println!(
-                    "  {:<8} {:>7} {:>10.2} {:>11.3}% {:>11.2}% {:>8} {:>8.1}mm {:>7}",
+                    "  {:<8} {:>7} {:>10.2} {:>11.3}% {:>11.2}% {:>10.2}° {:>8} {:>8.1}mm {:>7}",
                     r.solver,
                     t,
                     r.ms_per_frame_median,
                     r.mean_strain * 100.0,
                     r.max_strain * 100.0,
+                    r.mean_shear_deg,
                     r.inside,
                     r.deepest * 1e3,
                     r.stable
                 );
                 let _ = writeln!(
                     csv,
-                    "{},{},{t},{},,{:.3},,{:e},{:e},{},{:e},{}",
+                    "{},{},{t},{},,{:.3},,{:e},{:e},{},{:e},{},{:.3}",
                     r.scene,
                     r.solver,
                     r.frames,
@@ -98,7 +100,8 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
                     r.max_strain,
                     r.inside,
                     r.deepest,
-                    r.stable
+                    r.stable,
+                    r.mean_shear_deg
                 );
             }
         }

@@ -59,13 +59,14 @@ pub fn scene(args: &SceneArgs) -> Result<(Scene, String), Error> {
     for (name, value) in [
         ("--max-strain", args.max_strain),
         ("--max-penetration", args.max_penetration),
+        ("--max-shear", args.max_shear),
     ] {
         if let Some(v) = value {
             let a = scene.accuracy.get_or_insert_with(Default::default);
-            if name == "--max-strain" {
-                a.max_strain = Some(v);
-            } else {
-                a.max_penetration = Some(v);
+            match name {
+                "--max-strain" => a.max_strain = Some(v),
+                "--max-penetration" => a.max_penetration = Some(v),
+                _ => a.max_shear = Some(v),
             }
             scene::validate(&scene, &file).map_err(|e| flag(name, e))?;
         }

@@ -276,6 +276,12 @@ pub struct FrameMetrics {
     pub total_squared_error: f64,
     pub mean_strain: f64,
     pub max_strain: f64,
+    /// Mean and largest |90° − angle| of the garments' lattice cells [degrees] (shear, which
+    /// structural strain does not see).
+    #[serde(default)]
+    pub mean_shear_deg: f64,
+    #[serde(default)]
+    pub max_shear_deg: f64,
     pub penetrations: Vec<ColliderPenetration>,
 }
 

@@ -98,7 +98,8 @@ pub struct Scene {
     pub checkpoint_every: Option<u32>,
 }
 
-/// Accuracy targets: the worst structural strain and the deepest penetration any frame may have.
+/// Accuracy targets: the worst structural strain, the deepest penetration and the worst cell
+/// shear any frame may have.
 #[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct AccuracySpec {
@@ -107,6 +108,8 @@ pub struct AccuracySpec {
     /// Deepest a free garment particle may be inside a collider, a character's shell or its
     /// mesh in any frame [m].
     pub max_penetration: Option<f32>,
+    /// Largest |90° − angle| of a lattice cell in any frame [degrees]; needs shear springs.
+    pub max_shear: Option<f32>,
 }
 
 /// Where the simulation runs.

@@ -113,10 +113,17 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
         for (name, v) in [
             ("max_strain", a.max_strain),
             ("max_penetration", a.max_penetration),
+            ("max_shear", a.max_shear),
         ] {
             if let Some(v) = v {
                 positive(v).map_err(|r| fail(format!("accuracy.{name}"), r))?;
             }
+        }
+        if a.max_shear.is_some() && !scene.garments.iter().any(|g| g.stiffness.shear > 0.0) {
+            return Err(fail(
+                "accuracy.max_shear".into(),
+                "no garment has shear springs (stiffness.shear), so no budget can hold its cells square: give them shear springs or drop the target".into(),
+            ));
         }
     }
     if let Some(r) = scene.particle_radius {

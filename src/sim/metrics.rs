@@ -15,6 +15,11 @@ pub struct ConstraintError {
     pub mean_strain: f64,
     /// Largest |l − L| / L over structural springs.
     pub max_strain: f64,
+    /// Mean and largest |90° − angle| over the lattice's cell corners (two structural
+    /// springs from one particle along different axes, square at rest) [degrees]: the shear
+    /// that structural strain does not see.
+    pub mean_shear_deg: f64,
+    pub max_shear_deg: f64,
 }
 
 /// Constraint error of `positions` (storage order) over the model's structural springs that
@@ -44,7 +49,32 @@ pub fn constraint_error(model: &Model, positions: &[Vec4]) -> ConstraintError {
     if count > 0 {
         e.mean_strain /= count as f64;
     }
+    let (mean, max) = shear(model, positions);
+    e.mean_shear_deg = mean;
+    e.max_shear_deg = max;
     e
+}
+
+/// Mean and largest |90° − angle| over the model's cell corners that the solver moves (a
+/// corner whose three particles are all pinned or attached has the shape its targets give it).
+fn shear(model: &Model, positions: &[Vec4]) -> (f64, f64) {
+    let (mut sum, mut max, mut count) = (0.0f64, 0.0f64, 0usize);
+    for &[c, a, b] in &model.corners {
+        if [c, a, b].iter().all(|&p| model.inv_mass[p as usize] == 0.0) {
+            continue;
+        }
+        let at = positions[c as usize].truncate().as_dvec3();
+        let u = positions[a as usize].truncate().as_dvec3() - at;
+        let v = positions[b as usize].truncate().as_dvec3() - at;
+        let cos = (u.dot(v) / (u.length() * v.length())).clamp(-1.0, 1.0);
+        let deviation = (cos.acos().to_degrees() - 90.0).abs();
+        sum += deviation;
+        if deviation > max || deviation.is_nan() {
+            max = deviation;
+        }
+        count += 1;
+    }
+    (if count > 0 { sum / count as f64 } else { 0.0 }, max)
 }
 
 /// Energies of a state [J].

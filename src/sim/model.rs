@@ -129,6 +129,38 @@ pub struct Model {
     pub tethers: Vec<ModelTether>,
     /// Start of each particle's tethers in `tethers`; length = particles + 1.
     pub tether_start: Vec<u32>,
+    /// The lattice's cell corners, storage indices `[corner, a, b]`: two structural springs
+    /// from one particle along different lattice axes, square at rest (the shear metric).
+    pub corners: Vec<[u32; 3]>,
+}
+
+/// `garment`'s cell corners (grid order): at each particle, every two of its structural
+/// springs along different lattice axes.
+fn corners(garment: &Garment) -> Vec<[u32; 3]> {
+    let mut arms: Vec<Vec<(u32, usize)>> = vec![Vec::new(); garment.particle_count()];
+    for s in garment
+        .springs
+        .iter()
+        .filter(|s| s.family == SpringFamily::Stretch)
+    {
+        let (ca, cb) = (garment.cells[s.a as usize], garment.cells[s.b as usize]);
+        let Some(axis) = (0..3).find(|&k| ca[k] != cb[k]) else {
+            continue;
+        };
+        arms[s.a as usize].push((s.b, axis));
+        arms[s.b as usize].push((s.a, axis));
+    }
+    let mut out = Vec::new();
+    for (c, arms) in arms.iter().enumerate() {
+        for (i, &(a, axis_a)) in arms.iter().enumerate() {
+            for &(b, axis_b) in &arms[i + 1..] {
+                if axis_a != axis_b {
+                    out.push([c as u32, a, b]);
+                }
+            }
+        }
+    }
+    out
 }
 
 impl Model {
@@ -198,6 +230,11 @@ impl Model {
                     rest: t.rest,
                 });
             }
+            model.corners.extend(
+                corners(g)
+                    .into_iter()
+                    .map(|c| c.map(|p| model.storage_of[base + p as usize])),
+            );
             for s in &g.springs {
                 let spring = ModelSpring {
                     a: model.storage_of[base + s.a as usize],
