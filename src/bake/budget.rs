@@ -8,6 +8,7 @@
 //! when the scene has them on. Every decision depends only on the frames, so a bake gives the
 //! same frames every time.
 
+pub use crate::report::{BudgetReport, FrameBudget};
 use crate::scene::Scene;
 use crate::sim::Simulation;
 use serde::{Deserialize, Serialize};
@@ -45,27 +46,6 @@ pub struct BudgetState {
     /// of drape before settling: none).
     #[serde(default)]
     pub settle: u32,
-}
-
-/// What the report says of each frame's budget.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct FrameBudget {
-    pub frame: u32,
-    pub substeps: u32,
-    pub iterations: u32,
-    pub contact_passes: u32,
-    /// Times the frame was simulated (1: the first budget met the targets).
-    pub attempts: u32,
-    /// Why the budget changed before or during this frame (empty when it did not).
-    pub why: String,
-    /// Its worst structural strain, deepest penetration [m] and worst cell shear [degrees].
-    pub max_strain: f64,
-    pub deepest_penetration: f32,
-    #[serde(default)]
-    pub max_shear_deg: f64,
-    /// Kinetic energy the frame's settling took out [J] (0 when it did not settle).
-    #[serde(default)]
-    pub settled_joules: f64,
 }
 
 impl FrameBudget {
@@ -175,25 +155,6 @@ impl Targets {
             && self.max_penetration.is_none_or(|t| r.depth <= 0.5 * t)
             && self.max_shear.is_none_or(|t| r.shear <= 0.5 * t)
     }
-}
-
-/// The report's account of the budget.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct BudgetReport {
-    /// The targets.
-    pub max_strain: Option<f64>,
-    pub max_penetration: Option<f32>,
-    pub max_shear: Option<f64>,
-    /// The levels the budget could take, cheapest first: (substeps, iterations).
-    pub levels: Vec<(u32, u32)>,
-    /// True when every frame met the targets.
-    pub met: bool,
-    /// The worst strain, deepest penetration [m] and worst cell shear [degrees] over the bake.
-    pub max_strain_reached: f64,
-    pub deepest_penetration_reached: f32,
-    pub max_shear_reached: f64,
-    /// Every frame's budget.
-    pub per_frame: Vec<FrameBudget>,
 }
 
 impl BudgetReport {

@@ -317,3 +317,16 @@ pub fn materialise(cache: &std::path::Path) -> crate::error::Result<std::path::P
     let _ = std::fs::remove_dir_all(&staging);
     written.map(|()| root)
 }
+
+impl crate::scene::Scene {
+    /// The embedded default scene, scene P, with the mannequin clip and stool it needs written
+    /// under `cache` (see [`materialise`]).
+    pub fn default_scene(cache: &std::path::Path) -> crate::error::Result<crate::scene::Scene> {
+        let root = materialise(cache)?;
+        crate::scene::Scene::parse_in(
+            crate::scene::DEFAULT_SCENE,
+            crate::scene::DEFAULT_SCENE_FILE,
+            &root.join("scenes"),
+        )
+    }
+}

@@ -20,18 +20,10 @@ pub use import::Asset;
 pub use shell::Shell;
 
 use crate::error::{Error, Result};
+use crate::scene::CharacterSpec;
+pub use crate::scene::{MeshSelection, Preroll, UpAxis};
 use glam::{EulerRot, Mat4, Quat, Vec3};
 use std::path::{Path, PathBuf};
-
-/// The file's up axis (drape is Y-up).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum UpAxis {
-    #[default]
-    Y,
-    /// Z up (Blender's convention): rotated −90° about X on import.
-    Z,
-}
 
 /// How to read and place a character.
 #[derive(Clone, Debug, PartialEq)]
@@ -64,25 +56,6 @@ pub struct CharacterOptions {
     pub lead_in: usize,
 }
 
-/// A pre-roll ([`CharacterOptions::preroll`]): `settle` frames in the bind pose, then `blend`
-/// frames into the clip's first frame, joint by joint in the joints' local frames (rotations by
-/// slerp, translations and scales linearly), eased at both ends.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Preroll {
-    /// Frames holding the bind pose while the garments settle. Default 0.
-    pub settle: u32,
-    /// Frames blending from the bind pose into the clip's first frame. Default 0.
-    pub blend: u32,
-}
-
-impl Preroll {
-    /// Frames in all.
-    pub fn frames(&self) -> u32 {
-        self.settle.saturating_add(self.blend)
-    }
-}
-
 /// Where pre-roll frame `k` (0-based, of `lead_in` before the clip's first frame) stands
 /// between the bind pose (0) and the clip's first frame (1): 0 while settling, then the blend
 /// eased by smoothstep, 1 for a character without a pre-roll.
@@ -100,18 +73,6 @@ pub fn preroll_weight(preroll: Option<Preroll>, lead_in: usize, k: usize) -> f32
     u * u * (3.0 - 2.0 * u)
 }
 
-/// Which of a file's meshes collide: they alone get shell particles and are measured for
-/// penetration. Exports and previews still show the whole character. A name matches a mesh by
-/// its mesh, node or material name.
-#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, rename_all = "snake_case")]
-pub enum MeshSelection {
-    /// Only the meshes named.
-    Include(Vec<String>),
-    /// Every mesh but those named.
-    Exclude(Vec<String>),
-}
-
 impl MeshSelection {
     /// Whether `mesh` collides.
     pub fn collides(&self, mesh: &import::Mesh) -> bool {
@@ -121,30 +82,32 @@ impl MeshSelection {
             MeshSelection::Exclude(names) => !named(names),
         }
     }
-
-    /// The names in the selection.
-    pub fn names(&self) -> &[String] {
-        match self {
-            MeshSelection::Include(n) | MeshSelection::Exclude(n) => n,
-        }
-    }
 }
 
 impl Default for CharacterOptions {
+    /// The options of a scene's character entry left at its defaults: the import defaults
+    /// live in one place, [`CharacterSpec`]'s.
     fn default() -> Self {
+        CharacterSpec::default().options()
+    }
+}
+
+impl CharacterSpec {
+    /// The import options this entry describes.
+    pub fn options(&self) -> CharacterOptions {
         CharacterOptions {
-            clip: None,
-            scale: 1.0,
-            up: UpAxis::Y,
-            position: [0.0; 3],
-            rotation: [0.0; 3],
-            time_offset: 0.0,
-            speed: 1.0,
-            looping: false,
-            sequence_fps: None,
-            meshes: None,
+            clip: self.clip.clone(),
+            scale: self.scale,
+            up: self.up,
+            position: self.position,
+            rotation: self.rotation,
+            time_offset: self.time_offset,
+            speed: self.speed,
+            looping: self.looping,
+            sequence_fps: self.sequence_fps,
+            meshes: self.meshes.clone(),
             hidden: Vec::new(),
-            preroll: None,
+            preroll: self.preroll,
             lead_in: 0,
         }
     }

@@ -10,7 +10,6 @@
 //! each other are skipped: springs hold them, and at rest they already touch.
 
 use crate::garment::Garment;
-use crate::sim::model::Model;
 use glam::Vec4;
 
 /// Static data of particle–particle collisions, in the model's storage order.
@@ -42,17 +41,21 @@ pub struct Grid {
 pub const SKIP_STEPS: i32 = 2;
 
 impl ParticleCollisions {
-    /// Collisions between every particle of `model` (built from `garments`) at `radius`.
-    pub fn new(model: &Model, garments: &[Garment], radius: f32) -> ParticleCollisions {
-        let n = model.particle_count();
+    /// Collisions between every particle of `garments` at `radius`; `storage_of`: the storage
+    /// index of each particle in export order (the garments' particles one garment after
+    /// another).
+    pub fn new(storage_of: &[u32], garments: &[Garment], radius: f32) -> ParticleCollisions {
+        let n = storage_of.len();
         let mut garment = vec![0u32; n];
         let mut cell = vec![[0i32; 3]; n];
-        for (g, (spec, range)) in garments.iter().zip(&model.garments).enumerate() {
+        let mut start = 0;
+        for (g, spec) in garments.iter().enumerate() {
             for (k, c) in spec.cells.iter().enumerate() {
-                let s = model.storage_of[range.export.start + k] as usize;
+                let s = storage_of[start + k] as usize;
                 garment[s] = g as u32;
                 cell[s] = c.map(|v| v as i32);
             }
+            start += spec.particle_count();
         }
         ParticleCollisions {
             radius,

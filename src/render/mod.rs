@@ -531,18 +531,7 @@ impl FrameSource for Recorded {
     }
 }
 
-/// What [`render_sequence`] did.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RenderSummary {
-    pub frames: usize,
-    pub width: u32,
-    pub height: u32,
-    pub adapter: String,
-    /// Wall time per frame, render and PNG encoding [ms].
-    pub ms_per_frame: f64,
-    /// `preview/…` files, relative to the folder rendered into.
-    pub contact_sheet: String,
-}
+pub use crate::report::RenderSummary;
 
 /// Renders every frame of `source` into `dir/preview/frame_<first_frame>.png …` (the shot's
 /// frame numbers, four digits at least) plus `dir/preview/contact_sheet.png`, holding one

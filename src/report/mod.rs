@@ -79,7 +79,7 @@ pub struct Report {
     /// that bake's frame log, not simulated again.
     pub resumed: Option<Resumed>,
     /// With accuracy targets: the budget chosen for every frame, why, and what it reached.
-    pub budget: Option<crate::bake::budget::BudgetReport>,
+    pub budget: Option<BudgetReport>,
     /// Checkpoints this run wrote into `checkpoints/` (none when `checkpoint_every` is 0).
     pub checkpoints: Option<CheckpointReport>,
     /// Things the user should know, e.g. that `auto` fell back to the CPU and why.
@@ -94,7 +94,7 @@ pub struct Report {
     /// bake goes and are not listed).
     pub exports: Vec<ExportReport>,
     /// The preview render, if one was made.
-    pub preview: Option<crate::render::RenderSummary>,
+    pub preview: Option<RenderSummary>,
 }
 
 /// The pre-roll of a bake ([`Report::preroll`]).
@@ -342,4 +342,57 @@ pub struct ExportReport {
     pub files: usize,
     pub bytes: u64,
     pub ms: f64,
+}
+
+/// What `render::render_sequence` did (the report's `preview`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderSummary {
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    pub adapter: String,
+    /// Wall time per frame, render and PNG encoding [ms].
+    pub ms_per_frame: f64,
+    /// `preview/…` files, relative to the folder rendered into.
+    pub contact_sheet: String,
+}
+
+/// What the report says of each frame's budget.
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct FrameBudget {
+    pub frame: u32,
+    pub substeps: u32,
+    pub iterations: u32,
+    pub contact_passes: u32,
+    /// Times the frame was simulated (1: the first budget met the targets).
+    pub attempts: u32,
+    /// Why the budget changed before or during this frame (empty when it did not).
+    pub why: String,
+    /// Its worst structural strain, deepest penetration [m] and worst cell shear [degrees].
+    pub max_strain: f64,
+    pub deepest_penetration: f32,
+    #[serde(default)]
+    pub max_shear_deg: f64,
+    /// Kinetic energy the frame's settling took out [J] (0 when it did not settle).
+    #[serde(default)]
+    pub settled_joules: f64,
+}
+
+/// The report's account of the budget.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct BudgetReport {
+    /// The targets.
+    pub max_strain: Option<f64>,
+    pub max_penetration: Option<f32>,
+    pub max_shear: Option<f64>,
+    /// The levels the budget could take, cheapest first: (substeps, iterations).
+    pub levels: Vec<(u32, u32)>,
+    /// True when every frame met the targets.
+    pub met: bool,
+    /// The worst strain, deepest penetration [m] and worst cell shear [degrees] over the bake.
+    pub max_strain_reached: f64,
+    pub deepest_penetration_reached: f32,
+    pub max_shear_reached: f64,
+    /// Every frame's budget.
+    pub per_frame: Vec<FrameBudget>,
 }

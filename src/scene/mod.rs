@@ -5,10 +5,12 @@
 //! typo never silently falls back to a default. Parsing reports file, line, column and the JSON path
 //! of the field; [`validate`] then rejects impossible values, naming the field and the reason.
 
+mod character;
 mod collider;
 pub mod force;
 pub(crate) mod validate;
 
+pub use character::{CharacterSpec, MeshSelection, Preroll, UpAxis};
 pub use collider::{ColliderKind, ColliderShape, ColliderSpec};
 pub use force::ForceSpec;
 pub use validate::{
@@ -440,90 +442,6 @@ pub const REGIONS: [&str; 4] = ["top_edge", "bottom_edge", "corners", "hole_rim"
 /// and every surface particle borders empty cells).
 pub const MESH_REGIONS: [&str; 2] = ["top_edge", "bottom_edge"];
 
-/// An animated character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern,
-/// placed in the scene and covered by a shell of collision particles.
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CharacterSpec {
-    /// Name in reports. Default `"character<index>"`.
-    pub name: Option<String>,
-    /// The character, relative to the scene file's folder. Required.
-    pub file: String,
-    /// Clip name (or index as text) of a skinned file. Default none: the rest pose.
-    pub clip: Option<String>,
-    /// File units to metres. Default 1.
-    pub scale: f32,
-    /// The file's up axis: `"y"` (default) or `"z"`.
-    pub up: crate::character::UpAxis,
-    /// Placement [m] after scale and up axis. Default the origin.
-    pub position: [f32; 3],
-    /// Rotation, Euler degrees X then Y then Z. Default none.
-    pub rotation: [f32; 3],
-    /// Clip time at the start of the bake [s]. Default 0.
-    pub time_offset: f32,
-    /// Clip seconds per scene second. Default 1.
-    pub speed: f32,
-    /// Loop the clip (true) or hold its last pose (false, default).
-    #[serde(rename = "loop")]
-    pub looping: bool,
-    /// Frame rate of a sequence of files. Default: one file per scene frame.
-    pub sequence_fps: Option<f32>,
-    /// Shell particle radius [m]. Default 0.01.
-    pub radius: f32,
-    /// Coulomb friction against the garments. Default 0.5.
-    pub friction: f32,
-    /// Which of the file's meshes collide: `{"include": [names]}` or `{"exclude": [names]}`,
-    /// each a mesh, node or material name. Default all. Exports show the whole character.
-    pub meshes: Option<crate::character::MeshSelection>,
-    /// Frames simulated before the scene's first frame: the character holds its bind pose for
-    /// `settle` frames, then blends into the clip's first frame over `blend`. Default none.
-    pub preroll: Option<crate::character::Preroll>,
-}
-
-impl Default for CharacterSpec {
-    fn default() -> Self {
-        // The import defaults live in one place: CharacterOptions.
-        let o = crate::character::CharacterOptions::default();
-        CharacterSpec {
-            name: None,
-            file: String::new(),
-            clip: o.clip,
-            scale: o.scale,
-            up: o.up,
-            position: o.position,
-            rotation: o.rotation,
-            time_offset: o.time_offset,
-            speed: o.speed,
-            looping: o.looping,
-            sequence_fps: o.sequence_fps,
-            radius: 0.01,
-            friction: 0.5,
-            meshes: o.meshes,
-            preroll: o.preroll,
-        }
-    }
-}
-
-impl CharacterSpec {
-    /// The import options this entry describes.
-    pub fn options(&self) -> crate::character::CharacterOptions {
-        crate::character::CharacterOptions {
-            clip: self.clip.clone(),
-            scale: self.scale,
-            up: self.up,
-            position: self.position,
-            rotation: self.rotation,
-            time_offset: self.time_offset,
-            speed: self.speed,
-            looping: self.looping,
-            sequence_fps: self.sequence_fps,
-            meshes: self.meshes.clone(),
-            preroll: self.preroll,
-            ..Default::default()
-        }
-    }
-}
-
 /// What a bake writes besides `report.json`.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -597,13 +515,6 @@ impl Scene {
     /// Where character `index`'s file is, resolved against the scene's folder.
     pub fn character_path(&self, index: usize) -> std::path::PathBuf {
         self.base_dir.join(&self.characters[index].file)
-    }
-
-    /// The embedded default scene, scene P, with the mannequin clip and stool it needs written
-    /// under `cache` (see [`crate::character::mannequin::materialise`]).
-    pub fn default_scene(cache: &Path) -> Result<Scene> {
-        let root = crate::character::mannequin::materialise(cache)?;
-        Scene::parse_in(DEFAULT_SCENE, DEFAULT_SCENE_FILE, &root.join("scenes"))
     }
 
     /// Parses and validates scene JSON; `file` names the source in error messages. Relative

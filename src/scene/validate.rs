@@ -350,7 +350,7 @@ fn character_name(scene: &Scene, k: usize) -> String {
 }
 
 /// A pre-roll: some frames, numbered before `frame_start` without going below frame 0.
-fn check_preroll(scene: &Scene, p: crate::character::Preroll) -> std::result::Result<(), String> {
+fn check_preroll(scene: &Scene, p: super::Preroll) -> std::result::Result<(), String> {
     if p.frames() == 0 {
         return Err("needs settle or blend frames (both are 0)".into());
     }

@@ -171,7 +171,7 @@ impl Simulation {
             let radius = scene
                 .particle_radius
                 .unwrap_or_else(|| ParticleCollisions::default_radius(garments));
-            ParticleCollisions::new(&model, garments, radius)
+            ParticleCollisions::new(&model.storage_of, garments, radius)
         });
         let grid = RwLock::new(
             particle_collisions
