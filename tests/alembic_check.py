@@ -36,25 +36,18 @@ def obj_frame(path):
     return v, vt, vn, faces
 
 
-def meshes(obj, found):
+def objects(obj, schema, found):
+    """Every object under `obj` whose metadata `schema` (IPolyMesh, ICurves) matches."""
     for child in obj.children:
-        if AbcGeom.IPolyMesh.matches(child.getMetaData()):
+        if schema.matches(child.getMetaData()):
             found.append(child)
-        meshes(child, found)
-    return found
-
-
-def curves(obj, found):
-    for child in obj.children:
-        if AbcGeom.ICurves.matches(child.getMetaData()):
-            found.append(child)
-        curves(child, found)
+        objects(child, schema, found)
     return found
 
 
 def check_curves(archive, obj_dir, out):
     """A rope: one linear, open curve through its vertices, each sample its OBJ frame."""
-    for curve in curves(archive.getTop(), []):
+    for curve in objects(archive.getTop(), AbcGeom.ICurves, []):
         schema = AbcGeom.ICurves(curve.getParent(), curve.getName()).getSchema()
         name = curve.getParent().getName()
         ts = schema.getTimeSampling()
@@ -85,7 +78,7 @@ def check(path, obj_dir):
         out["time_samplings"].append(
             {"step": ts.getTimeSamplingType().getTimePerCycle(), "start": ts.getSampleTime(0)}
         )
-    for mesh in meshes(archive.getTop(), []):
+    for mesh in objects(archive.getTop(), AbcGeom.IPolyMesh, []):
         schema = AbcGeom.IPolyMesh(mesh.getParent(), mesh.getName()).getSchema()
         name = mesh.getParent().getName()
         ts = schema.getTimeSampling()
