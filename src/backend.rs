@@ -103,6 +103,14 @@ impl Backend {
         }
     }
 
+    /// Compute dispatches and queue submissions of the last frame (None on the CPU).
+    pub fn launches_last_frame(&self) -> Option<(u32, u32)> {
+        match self {
+            Backend::Cpu => None,
+            Backend::Gpu(g) => Some(g.launches_last_frame()),
+        }
+    }
+
     /// True on the GPU.
     pub fn is_gpu(&self) -> bool {
         matches!(self, Backend::Gpu(_))

@@ -334,3 +334,57 @@ fn gpu_stages_are_timed_where_the_device_has_timestamps() {
         assert_eq!(of(name), 0.0, "{name} does not run here");
     }
 }
+
+#[test]
+fn the_gpu_records_a_frame_as_one_submission_whatever_its_substeps() {
+    // The report's launch counts: one command buffer per frame, and dispatches that grow by
+    // the same number with every substep (no round trip to the CPU inside a frame).
+    if common::gpu_context().is_none() {
+        return;
+    }
+    let dir = common::temp_dir();
+    let d = dir.path();
+    common::write(
+        d,
+        "scene.json",
+        r#"{ "name": "s", "frames": 5, "backend": "gpu", "output": { "gltf": "none", "obj": false },
+             "garments": [{ "resolution": [12, 8], "pins": [[0, 0], [-1, 0]] }],
+             "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }] }"#,
+    );
+    let launches = |substeps: u32| {
+        let out = format!("out{substeps}");
+        let run = common::drape(
+            d,
+            &[
+                "bake",
+                "scene.json",
+                "--substeps",
+                &substeps.to_string(),
+                "--out",
+                &out,
+            ],
+        );
+        assert!(run.status.success(), "{}", common::stderr(&run));
+        let r: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(d.join(out).join("report.json")).unwrap(),
+        )
+        .unwrap();
+        (
+            r["gpu_dispatches_per_frame"].as_f64().unwrap(),
+            r["gpu_submissions_per_frame"].as_f64().unwrap(),
+        )
+    };
+    let [(d10, s10), (d20, s20), (d30, s30)] = [10, 20, 30].map(launches);
+    assert_eq!([s10, s20, s30], [1.0; 3]);
+    let per_substep = (d20 - d10) / 10.0;
+    assert!(per_substep >= 1.0, "{d10} {d20}");
+    assert_eq!(
+        d30 - d20,
+        d20 - d10,
+        "dispatches per substep change: {d10} {d20} {d30}"
+    );
+    eprintln!(
+        "{per_substep} dispatches per substep, {} per frame besides",
+        d10 - 10.0 * per_substep
+    );
+}

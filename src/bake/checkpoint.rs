@@ -49,6 +49,9 @@ pub struct Progress {
     pub frame_ms: Vec<f64>,
     /// Bytes written to the GPU so far.
     pub uploaded: u64,
+    /// Compute dispatches and queue submissions on the GPU so far.
+    pub dispatched: u64,
+    pub submitted: u64,
     pub residuals: Vec<Vec<f64>>,
     /// Worst penetration of each collider, then each shell, so far.
     pub worst: Vec<Penetration>,

@@ -79,6 +79,10 @@ pub fn run(
         if let Some(bytes) = backend.uploaded_last_frame() {
             progress.uploaded += bytes;
         }
+        if let Some((dispatches, submissions)) = backend.launches_last_frame() {
+            progress.dispatched += u64::from(dispatches);
+            progress.submitted += u64::from(submissions);
+        }
         let tearing = Instant::now();
         if sim.tears() && sim.tear() > 0 {
             // The GPU takes the torn model (and the state it produced) afresh.
@@ -170,8 +174,10 @@ fn sum_up(
         p.ms = progress.frame_ms.iter().take(p.frames as usize).sum();
     }
     if backend.is_gpu() {
-        report.gpu_upload_bytes_per_frame =
-            Some(progress.uploaded / (progress.frame_ms.len() as u64).max(1));
+        let frames = (progress.frame_ms.len() as u64).max(1);
+        report.gpu_upload_bytes_per_frame = Some(progress.uploaded / frames);
+        report.gpu_dispatches_per_frame = Some(progress.dispatched as f64 / frames as f64);
+        report.gpu_submissions_per_frame = Some(progress.submitted as f64 / frames as f64);
     }
     report.frames_hash = format!("{:016x}", progress.hash);
     if let Some(t) = targets {

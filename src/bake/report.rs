@@ -63,6 +63,8 @@ pub(super) fn empty_report(
         penetrations_per_frame: Vec::new(),
         worst_mesh_penetrations: Vec::new(),
         gpu_upload_bytes_per_frame: None,
+        gpu_dispatches_per_frame: None,
+        gpu_submissions_per_frame: None,
         mesh_penetrations_per_frame: Vec::new(),
         torn_springs: 0,
         preroll: (scene.lead_in > 0).then(|| PrerollReport {

@@ -401,7 +401,7 @@ impl SkinMotion {
 
     /// Records the pass that sums the window's normals, places every substep's shell particles
     /// and builds their grids.
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder) -> u32 {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("drape skin"),
             timestamp_writes: None,
@@ -419,10 +419,13 @@ impl SkinMotion {
             (groups(particles), s),
             (groups(buckets), s),
         ];
+        let mut dispatched = 0;
         for (pipeline, (x, y)) in self.pipelines.iter().zip(sizes) {
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(x, y, r);
+            dispatched += 1;
         }
+        dispatched
     }
 }
 

@@ -42,6 +42,10 @@ pub struct GpuSimulation {
     static_shells_uploaded: bool,
     /// Bytes written to the GPU for the last frame (attachment targets, shells, collider poses).
     uploaded_last_frame: u64,
+    /// Compute dispatches recorded and command buffers submitted for the last frame: the
+    /// launch overhead a hardware GPU pays per frame.
+    dispatches: std::cell::Cell<u32>,
+    submissions: u32,
     particles: u32,
     springs: u32,
     structural: u32,
@@ -208,6 +212,8 @@ impl GpuSimulation {
             clock,
             static_shells_uploaded: false,
             uploaded_last_frame: 0,
+            dispatches: std::cell::Cell::new(0),
+            submissions: 0,
             particles: model.particle_count() as u32,
             springs: model.springs.len() as u32,
             structural: model.structural_springs as u32,
@@ -245,6 +251,11 @@ impl GpuSimulation {
         self.uploaded_last_frame
     }
 
+    /// Compute dispatches and queue submissions of the last frame.
+    pub fn launches_last_frame(&self) -> (u32, u32) {
+        (self.dispatches.get(), self.submissions)
+    }
+
     /// The adapter's "name (type)".
     pub fn adapter(&self) -> String {
         self.ctx.describe()
@@ -260,6 +271,8 @@ impl GpuSimulation {
     pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
         // Where the attached particles go this frame, substep by substep (also advances the
         // simulation's clock).
+        self.dispatches.set(0);
+        self.submissions = 0;
         let driven = sim.drive_frame(!self.static_shells_uploaded, &self.placed_on_gpu);
         self.uploaded_last_frame = self.upload(&driven);
         // The frame's first substep, counted from the bake's start.
@@ -295,6 +308,7 @@ impl GpuSimulation {
             .device
             .push_error_scope(wgpu::ErrorFilter::Validation);
         self.ctx.queue.submit([encoder.finish()]);
+        self.submissions += 1;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu {
                 reason: format!("{}: {e}", self.ctx.adapter.name),
@@ -465,7 +479,8 @@ impl GpuSimulation {
             encoder.clear_buffer(&fields.work, 0, None);
         }
         if let Some(skin) = &self.skin {
-            skin.record(&mut encoder);
+            let recorded = skin.record(&mut encoder);
+            self.dispatches.set(self.dispatches.get() + recorded);
         }
         let integrating = sim.integrating();
         let n = self.particles;
@@ -594,6 +609,7 @@ impl GpuSimulation {
             &[(slot as u64 * PARAMS_STRIDE) as u32],
         );
         pass.dispatch_workgroups(groups(count, size), 1, 1);
+        self.dispatches.set(self.dispatches.get() + 1);
     }
 
     /// One solver iteration (`Solver::iterate`): a PBD iteration, or the local step and the

@@ -41,6 +41,12 @@ pub struct Report {
     /// the kernels: attachment targets, characters' shells, collider poses); absent on the CPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_upload_bytes_per_frame: Option<u64>,
+    /// GPU backend: compute dispatches and queue submissions per frame, on average (the launch
+    /// overhead a hardware GPU pays); absent on the CPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_dispatches_per_frame: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_submissions_per_frame: Option<f64>,
     /// Metrics after the last baked frame.
     pub last_frame: Option<FrameMetrics>,
     /// The frame with the largest structural strain.
