@@ -392,54 +392,13 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
         std::fs::create_dir_all(&scenes).map_err(|e| Error::io(&scenes, "cannot create", e))?;
         let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("drape"));
         let exe = exe.display().to_string();
-        let (mut jobs, mut shells) = (String::new(), String::new());
-        let chunked = variants.iter().any(|v| !v.chunks.is_empty());
-        let chunk_count = variants
-            .iter()
-            .map(|v| v.chunks.len())
-            .max()
-            .unwrap_or(0)
-            .max(1);
-        // Every chunk file has a line per variant, in one order, so task i of every chunk's
-        // array is variant i (Slurm's `aftercorr` pairs them): a variant with fewer chunks (a
-        // wedge on `frames`) gets a line that does nothing.
-        let mut chunk_lists: Vec<String> = vec![String::new(); chunk_count];
-        // Every path in the lists is relative to the plan folder, which the recipes run them
-        // from.
-        let cache = "shells";
-        let exe_line = drape_command(&exe);
         for v in variants {
             let path = scenes.join(format!("{}.json", v.name));
             std::fs::write(&path, &v.text).map_err(|e| Error::io(&path, "cannot write", e))?;
-            let scene = quoted(&format!("scenes/{}.json", v.name));
-            let bake = quoted(&format!("bakes/{}", v.name));
-            let exe = &exe_line;
-            if v.characters {
-                shells.push_str(&format!("{exe} shell {scene} --out {cache}\n"));
-            }
-            for (k, list) in chunk_lists.iter_mut().enumerate() {
-                let until = if chunked {
-                    v.chunks.get(k).copied()
-                } else {
-                    None
-                };
-                if chunked && until.is_none() {
-                    list.push_str(&format!(": {} has no chunk {}\n", v.name, k + 1));
-                    continue;
-                }
-                // Every bake resumes: one that a scheduler runs again after a pre-emption
-                // continues from its last checkpoint, and each chunk from the one before.
-                let mut line = format!("{exe} bake {scene} --out {bake} --resume --threads {cpus}");
-                if v.characters {
-                    line.push_str(&format!(" --shell-cache {cache}"));
-                }
-                if let Some(u) = until {
-                    line.push_str(&format!(" --until {u}"));
-                }
-                line.push('\n');
-                list.push_str(&line);
-            }
         }
+        let (shells, chunk_lists) = lists(variants, &drape_command(&exe), cpus);
+        let chunked = variants.iter().any(|v| !v.chunks.is_empty());
+        let mut jobs = String::new();
         // Chunk after chunk: `bash jobs.txt` runs every bake to the end in order.
         for list in &chunk_lists {
             jobs.push_str(list);
@@ -461,7 +420,7 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
         let yaml_path = staging.join("job.yaml");
         std::fs::write(&yaml_path, openjd(&exe, stem, variants, cpus))
             .map_err(|e| Error::io(&yaml_path, "cannot write", e))?;
-        for (name, text) in recipes(&exe, cpus, chunk_count) {
+        for (name, text) in recipes(&exe, cpus, chunk_lists.len()) {
             let path = staging.join(name);
             std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
             #[cfg(unix)]
@@ -479,6 +438,57 @@ fn write_plan(out: &Path, stem: &str, variants: &[Variant], cpus: u32) -> Result
         let _ = std::fs::remove_dir_all(&staging);
     }
     result
+}
+
+/// The plan's command lists: `shells.txt`'s lines and each chunk file's (one chunk: `jobs.txt`),
+/// every path relative to the plan folder; `exe_line` runs drape.
+fn lists(variants: &[Variant], exe_line: &str, cpus: u32) -> (String, Vec<String>) {
+    let mut shells = String::new();
+    let chunked = variants.iter().any(|v| !v.chunks.is_empty());
+    let chunk_count = variants
+        .iter()
+        .map(|v| v.chunks.len())
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    // Every chunk file has a line per variant, in one order, so task i of every chunk's
+    // array is variant i (Slurm's `aftercorr` pairs them): a variant with fewer chunks (a
+    // wedge on `frames`) gets a line that does nothing.
+    let mut chunk_lists: Vec<String> = vec![String::new(); chunk_count];
+    // Every path in the lists is relative to the plan folder, which the recipes run them
+    // from.
+    let cache = "shells";
+    for v in variants {
+        let scene = quoted(&format!("scenes/{}.json", v.name));
+        let bake = quoted(&format!("bakes/{}", v.name));
+        let exe = exe_line;
+        if v.characters {
+            shells.push_str(&format!("{exe} shell {scene} --out {cache}\n"));
+        }
+        for (k, list) in chunk_lists.iter_mut().enumerate() {
+            let until = if chunked {
+                v.chunks.get(k).copied()
+            } else {
+                None
+            };
+            if chunked && until.is_none() {
+                list.push_str(&format!(": {} has no chunk {}\n", v.name, k + 1));
+                continue;
+            }
+            // Every bake resumes: one that a scheduler runs again after a pre-emption
+            // continues from its last checkpoint, and each chunk from the one before.
+            let mut line = format!("{exe} bake {scene} --out {bake} --resume --threads {cpus}");
+            if v.characters {
+                line.push_str(&format!(" --shell-cache {cache}"));
+            }
+            if let Some(u) = until {
+                line.push_str(&format!(" --until {u}"));
+            }
+            line.push('\n');
+            list.push_str(&line);
+        }
+    }
+    (shells, chunk_lists)
 }
 
 /// The plan as an Open Job Description job template (specification 2023-09): one step whose

@@ -134,6 +134,20 @@ pub struct Model {
     pub corners: Vec<[u32; 3]>,
 }
 
+/// Every garment's cell corners, storage indices.
+fn lattice_corners(garments: &[Garment], model: &Model) -> Vec<[u32; 3]> {
+    garments
+        .iter()
+        .zip(&model.garments)
+        .flat_map(|(g, range)| {
+            let storage = &model.storage_of[range.export.clone()];
+            corners(g)
+                .into_iter()
+                .map(move |c| c.map(|p| storage[p as usize]))
+        })
+        .collect()
+}
+
 /// `garment`'s cell corners (grid order): at each particle, every two of its structural
 /// springs along different lattice axes.
 fn corners(garment: &Garment) -> Vec<[u32; 3]> {
@@ -230,11 +244,6 @@ impl Model {
                     rest: t.rest,
                 });
             }
-            model.corners.extend(
-                corners(g)
-                    .into_iter()
-                    .map(|c| c.map(|p| model.storage_of[base + p as usize])),
-            );
             for s in &g.springs {
                 let spring = ModelSpring {
                     a: model.storage_of[base + s.a as usize],
@@ -244,27 +253,35 @@ impl Model {
                 springs.push((s.family, spring, s.weight));
             }
         }
+        model.corners = lattice_corners(garments, &model);
+        model.set_springs(springs);
+        model
+    }
+
+    /// Takes `springs` (family, spring, weight): structural ones first, the adjacency slots
+    /// and the tethers' index built from them.
+    fn set_springs(&mut self, mut springs: Vec<(SpringFamily, ModelSpring, f32)>) {
+        let n = self.mass.len();
         // Structural springs first, so metrics read one prefix; then in storage order of their
         // first particle, so a thread's share of springs covers the particles it updates.
         springs.sort_by_key(|(family, s, _)| {
             (*family != SpringFamily::Stretch, s.a.min(s.b), s.a.max(s.b))
         });
-        model.structural_springs = springs
+        self.structural_springs = springs
             .iter()
             .filter(|(family, _, _)| *family == SpringFamily::Stretch)
             .count();
-        model.spring_weight = springs.iter().map(|s| s.2).collect();
-        model.springs = springs.into_iter().map(|s| s.1).collect();
-        model.build_slots();
-        model.tethers.sort_by_key(|t| (t.particle, t.pin));
-        model.tether_start = vec![0; n + 1];
-        for t in &model.tethers {
-            model.tether_start[t.particle as usize + 1] += 1;
+        self.spring_weight = springs.iter().map(|s| s.2).collect();
+        self.springs = springs.into_iter().map(|s| s.1).collect();
+        self.build_slots();
+        self.tethers.sort_by_key(|t| (t.particle, t.pin));
+        self.tether_start = vec![0; n + 1];
+        for t in &self.tethers {
+            self.tether_start[t.particle as usize + 1] += 1;
         }
         for i in 0..n {
-            model.tether_start[i + 1] += model.tether_start[i];
+            self.tether_start[i + 1] += self.tether_start[i];
         }
-        model
     }
 
     /// Compressed per-particle adjacency from the spring list; slots of a particle are ordered by
