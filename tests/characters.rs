@@ -712,31 +712,6 @@ fn meshes_are_chosen_by_mesh_node_or_material_name() {
     );
 }
 
-/// Independent reference: inside by the parity of a ray's crossings over every triangle (f64
-/// Möller–Trumbore along a fixed oblique direction).
-fn parity_inside(v: &[Vec3], t: &[[u32; 3]], p: Vec3) -> bool {
-    let d = glam::DVec3::new(0.5727, 0.6163, 0.5402).normalize();
-    let o = p.as_dvec3();
-    let mut hits = 0;
-    for tri in t {
-        let [a, b, c] = tri.map(|i| v[i as usize].as_dvec3());
-        let (e1, e2) = (b - a, c - a);
-        let h = d.cross(e2);
-        let det = e1.dot(h);
-        if det.abs() < 1e-15 {
-            continue;
-        }
-        let s = o - a;
-        let u = s.dot(h) / det;
-        let q = s.cross(e1);
-        let w = d.dot(q) / det;
-        if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && e2.dot(q) / det > 0.0 {
-            hits += 1;
-        }
-    }
-    hits % 2 == 1
-}
-
 #[test]
 fn a_flat_shaded_character_is_measured_as_its_smooth_original() {
     use drape::collide::mesh::{penetration, Surface};
@@ -782,7 +757,7 @@ fn a_flat_shaded_character_is_measured_as_its_smooth_original() {
     if surface.closed() {
         let disagree = points
             .iter()
-            .filter(|&&p| (surface.penetration(&[p]).inside == 1) != parity_inside(v, t, p))
+            .filter(|&&p| (surface.penetration(&[p]).inside == 1) != common::parity_inside(v, t, p))
             .count();
         assert_eq!(disagree, 0, "probes judged otherwise than by ray parity");
     }

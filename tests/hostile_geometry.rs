@@ -6,6 +6,9 @@
 //! L prism moved far and turned between frames, measured with the first frame's topology as a
 //! bake measures a fast character.
 
+mod common;
+
+use common::parity_inside;
 use drape::collide::mesh::{Surface, Topology, REACH};
 use glam::{Quat, Vec3};
 
@@ -85,30 +88,6 @@ fn probes(lo: Vec3, hi: Vec3, step: f32) -> Vec<Vec3> {
         }
     }
     out
-}
-
-/// Inside by the parity of a ray's crossings over every triangle (f64, an oblique direction).
-fn parity_inside(v: &[Vec3], t: &[[u32; 3]], p: Vec3) -> bool {
-    let d = glam::DVec3::new(0.5727, 0.6163, 0.5402).normalize();
-    let o = p.as_dvec3();
-    let mut hits = 0;
-    for tri in t {
-        let [a, b, c] = tri.map(|i| v[i as usize].as_dvec3());
-        let (e1, e2) = (b - a, c - a);
-        let h = d.cross(e2);
-        let det = e1.dot(h);
-        if det.abs() < 1e-15 {
-            continue;
-        }
-        let s = o - a;
-        let u = s.dot(h) / det;
-        let q = s.cross(e1);
-        let w = d.dot(q) / det;
-        if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && e2.dot(q) / det > 0.0 {
-            hits += 1;
-        }
-    }
-    hits % 2 == 1
 }
 
 #[test]

@@ -247,11 +247,12 @@ fn step_within(
             sim.settle_frame();
         }
         backend.step_frame(sim)?;
-        let reading = accuracy_of(sim, meshes, index);
+        let error = sim.constraint_error();
+        let reading = accuracy_of(sim, &error, meshes, index);
         // A frame the stability rule rejects is simulated again at a higher budget too, while
         // there is one (the cheap end of the ladder can gain energy on stiff springs).
         let missed = t.missed(reading).or_else(|| {
-            unstable_now(sim, progress).map(|r| format!("the frame went unstable ({r})"))
+            unstable_now(sim, &error, progress).map(|r| format!("the frame went unstable ({r})"))
         });
         match missed {
             Some(reason) if progress.budget.level + 1 < t.levels.len() => {
@@ -311,7 +312,12 @@ fn step_within(
 
 /// The worst structural strain and cell shear of `sim` now and the deepest any free particle is
 /// inside a collider, a shell or a character's mesh (at baked frame `index`) [m].
-fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> Reading {
+fn accuracy_of(
+    sim: &Simulation,
+    error: &metrics::ConstraintError,
+    meshes: Shown,
+    index: usize,
+) -> Reading {
     let free = sim.free_positions();
     let deepest = solid_penetrations(sim, &free)
         .into_iter()
@@ -322,7 +328,6 @@ fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> Reading {
         )
         .map(|p| p.deepest)
         .fold(0.0f32, f32::max);
-    let error = sim.constraint_error();
     Reading {
         strain: error.max_strain,
         depth: deepest,
@@ -331,10 +336,14 @@ fn accuracy_of(sim: &Simulation, meshes: Shown, index: usize) -> Reading {
 }
 
 /// Why `sim` is unstable now by the stability rule (`scenes.md`), if it is.
-fn unstable_now(sim: &Simulation, progress: &Progress) -> Option<String> {
+fn unstable_now(
+    sim: &Simulation,
+    error: &metrics::ConstraintError,
+    progress: &Progress,
+) -> Option<String> {
     metrics::instability(
         &sim.state,
-        &sim.constraint_error(),
+        error,
         &sim.energy(),
         &progress.initial_energy,
         sim.driven_energy() + sim.rounding_energy(),

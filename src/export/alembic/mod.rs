@@ -70,8 +70,11 @@ struct Curve {
 
 /// A `PolyMesh`'s own properties.
 struct Faces {
-    /// Its faces now, as Alembic wants them (corners reversed).
+    /// Its faces now: drape's (for the normals), as Alembic wants them (corners reversed),
+    /// and their corner counts (all 3).
+    triangles: Vec<[u32; 3]>,
     indices: Vec<i32>,
+    counts: Vec<i32>,
     uvs: Option<Vec<[f32; 2]>>,
     face_indices: Property,
     face_counts: Property,
@@ -113,7 +116,9 @@ impl AlembicFile {
                 }))
             } else {
                 Shape::Faces(Box::new(Faces {
+                    triangles: m.triangles.clone(),
                     indices: clockwise(&m.triangles),
+                    counts: vec![3; m.triangles.len()],
                     uvs: m.uvs.clone(),
                     face_indices: Property::array(".faceIndices", "", Pod::Int32, 1, ts),
                     face_counts: Property::array(".faceCounts", "", Pod::Int32, 1, ts),
@@ -247,20 +252,17 @@ const NO_BASIS: u8 = 0;
 
 impl Faces {
     fn sample(&mut self, archive: &mut Archive, positions: &[Vec3]) -> Result<()> {
-        let faces = self.indices.len() / 3;
         self.face_indices.set(
             archive,
             bytemuck::cast_slice(&self.indices),
             self.indices.len(),
         )?;
-        self.face_counts
-            .set(archive, bytemuck::cast_slice(&vec![3i32; faces]), faces)?;
-        let triangles: Vec<[u32; 3]> = self
-            .indices
-            .chunks_exact(3)
-            .map(|t| [t[2] as u32, t[1] as u32, t[0] as u32])
-            .collect();
-        let normals = vertex_normals(&triangles, positions);
+        self.face_counts.set(
+            archive,
+            bytemuck::cast_slice(&self.counts),
+            self.counts.len(),
+        )?;
+        let normals = vertex_normals(&self.triangles, positions);
         self.normals
             .set(archive, bytemuck::cast_slice(&normals), normals.len())?;
         if let (Some(uvs), Some(values), Some(indices)) =
@@ -305,7 +307,9 @@ impl FrameSink for AlembicFile {
             ..
         }) = self.meshes.iter_mut().find(|m| m.mesh == mesh)
         {
+            f.triangles = triangles.to_vec();
             f.indices = clockwise(triangles);
+            f.counts = vec![3; triangles.len()];
         }
         Ok(())
     }
