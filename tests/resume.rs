@@ -140,7 +140,7 @@ const LONG: &str = r#"{ "name": "long", "frames": 1500, "substeps": 4, "backend"
 /// Starts `drape bake scene.json --out out` in `dir` and waits until its staging folder holds a
 /// checkpoint.
 fn start_and_wait_for_a_checkpoint(dir: &Path) -> std::process::Child {
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
         .args(["bake", "scene.json", "--out", "out"])
         .current_dir(dir)
         .stdout(std::process::Stdio::null())
@@ -155,6 +155,10 @@ fn start_and_wait_for_a_checkpoint(dir: &Path) -> std::process::Child {
         .iter()
         .any(|(frame, _)| *frame >= 5)
     {
+        if let Some(status) = child.try_wait().unwrap() {
+            let out = child.wait_with_output().unwrap();
+            panic!("the bake ended ({status}) before its first checkpoint: {}", common::stderr(&out));
+        }
         assert!(std::time::Instant::now() < deadline, "no checkpoint came");
         std::thread::sleep(std::time::Duration::from_millis(1));
     }

@@ -40,7 +40,7 @@ pub fn load_characters(
         options.hidden = garment_meshes_in(scene, &path);
         let frames = scene.frames as usize + 1;
         let mut character = Character::load(&path, &options, scene.fps, frames)?;
-        let name = spec.name.clone().unwrap_or_else(|| format!("character{i}"));
+        let name = scene.character_name(i);
         warnings.extend(std::mem::take(&mut character.warnings));
         let odd_size = character.size_warning(spec.scale);
         // Too many shell particles on a body of implausible size is the scale's fault.

@@ -7,6 +7,7 @@ pub mod chart;
 pub mod convergence;
 pub mod integrator_report;
 pub mod integrators;
+pub mod peers;
 pub mod studies;
 
 use crate::bake::thread_pool;

@@ -333,6 +333,9 @@ pub struct BenchArgs {
     /// `sizes`: backends to time; `gpu` uses any adapter (software ones too).
     #[arg(long, value_delimiter = ',', value_enum, default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
     pub backends: Vec<BackendArg>,
+    /// `peers`: Blender's executable (default: `$BLENDER`, then `blender` on the PATH).
+    #[arg(long)]
+    pub blender: Option<PathBuf>,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -353,6 +356,11 @@ pub enum BenchWhat {
     /// and P at a fixed 40 × 20: CSV and SVG in docs/bench, the table in
     /// docs/accuracy-vs-speed.md (`--frames`: fewer).
     Budget,
+    /// drape against Blender's cloth (`blender` on the PATH, or `--blender`) on scene H with
+    /// shear springs and two character scenes: the same metrics from both tools' OBJ frames,
+    /// CSV and SVG in docs/bench, the table in docs/accuracy-vs-speed.md (`--quick`: small
+    /// scenes, a few frames).
+    Peers,
 }
 
 /// `X,Y,Z`: three numbers in one argument (so `--position 0,0,0.5 --out p.shell` leaves

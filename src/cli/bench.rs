@@ -13,6 +13,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
     match args.what {
         BenchWhat::Sizes => return sizes(&args),
         BenchWhat::Budget => return budget(&args),
+        BenchWhat::Peers => return peers(&args),
         BenchWhat::Convergence | BenchWhat::Integrators | BenchWhat::Docs => return studies(&args),
         BenchWhat::Solvers => {}
     }
@@ -201,6 +202,24 @@ fn budget(args: &BenchArgs) -> anyhow::Result<i32> {
         "wrote {}/bench/budget.csv, budget.svg and the table in {}",
         out.display(),
         page.display()
+    );
+    Ok(0)
+}
+
+/// `drape bench peers`: drape against Blender's cloth; CSV and SVG into `OUT/bench`, the table
+/// into `OUT/accuracy-vs-speed.md` (OUT: `docs`).
+fn peers(args: &BenchArgs) -> anyhow::Result<i32> {
+    let out = args.out.clone().unwrap_or_else(|| "docs".into());
+    let mut log = |line: &str| println!("{line}");
+    let options = drape::bench::peers::Options {
+        blender: args.blender.clone(),
+        frames: args.frames,
+        quick: args.quick,
+    };
+    drape::bench::peers::run(std::path::Path::new("."), &out, &options, &mut log)?;
+    println!(
+        "wrote {0}/bench/peers.csv, {0}/bench/peers.svg and the table in {0}/accuracy-vs-speed.md",
+        out.display()
     );
     Ok(0)
 }

@@ -88,7 +88,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     for (i, c) in scene.characters.iter().enumerate() {
         println!(
             "  character '{}': {}",
-            c.name.clone().unwrap_or_else(|| format!("character{i}")),
+            scene.character_name(i),
             scene.character_path(i).display()
         );
         if let Some(p) = c.preroll {
@@ -130,13 +130,7 @@ fn dressing(
     let mut lines = Vec::new();
     for (g, spec) in garments.iter().zip(&scene.garments) {
         let Some(on) = &spec.on else { continue };
-        let Some(k) = (0..scene.characters.len()).find(|&k| {
-            scene.characters[k]
-                .name
-                .clone()
-                .unwrap_or_else(|| format!("character{k}"))
-                == *on
-        }) else {
+        let Some(k) = (0..scene.characters.len()).find(|&k| scene.character_name(k) == *on) else {
             continue;
         };
         let c = &scene.characters[k];

@@ -456,13 +456,7 @@ fn character_named<'s>(
     name: &str,
 ) -> Option<&'s crate::scene::CharacterSpec> {
     (0..scene.characters.len())
-        .find(|&k| {
-            scene.characters[k]
-                .name
-                .clone()
-                .unwrap_or_else(|| format!("character{k}"))
-                == name
-        })
+        .find(|&k| scene.character_name(k) == name)
         .map(|k| &scene.characters[k])
 }
 

@@ -650,6 +650,14 @@ impl Scene {
             .clone()
             .unwrap_or_else(|| format!("garment{index}"))
     }
+
+    /// The name of character `index`: its own or `character<index>`.
+    pub fn character_name(&self, index: usize) -> String {
+        self.characters[index]
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("character{index}"))
+    }
 }
 
 /// serde_json says only "expected value" when a named choice (`"solver": {"kind": 3}`) is not a

@@ -72,9 +72,7 @@ pub fn validate(scene: &Scene, file: &str) -> Result<()> {
     for (i, g) in scene.garments.iter().enumerate() {
         for a in &g.attachments {
             if let Some(name) = &a.character {
-                let known = scene.characters.iter().enumerate().any(|(k, c)| {
-                    c.name.clone().unwrap_or_else(|| format!("character{k}")) == *name
-                });
+                let known = (0..scene.characters.len()).any(|k| scene.character_name(k) == *name);
                 if !known {
                     return Err(fail(
                         format!("garments[{i}].attachments"),
@@ -309,7 +307,7 @@ fn check_characters(scene: &Scene) -> std::result::Result<(), Failure> {
                 "a character needs a file, folder or %04d pattern".into(),
             ));
         }
-        let name = c.name.clone().unwrap_or_else(|| format!("character{i}"));
+        let name = scene.character_name(i);
         if let Some(reason) = bad_name(&name) {
             return Err(fail(at("name"), reason));
         }
@@ -330,7 +328,7 @@ fn check_characters(scene: &Scene) -> std::result::Result<(), Failure> {
     }
     for (i, g) in scene.garments.iter().enumerate() {
         let Some(on) = &g.on else { continue };
-        let known = (0..scene.characters.len()).any(|k| character_name(scene, k) == *on);
+        let known = (0..scene.characters.len()).any(|k| scene.character_name(k) == *on);
         if !known {
             return Err(fail(
                 format!("garments[{i}].on"),
@@ -341,13 +339,7 @@ fn check_characters(scene: &Scene) -> std::result::Result<(), Failure> {
     Ok(())
 }
 
-/// The name of character `k`, its own or `character<k>`.
-fn character_name(scene: &Scene, k: usize) -> String {
-    scene.characters[k]
-        .name
-        .clone()
-        .unwrap_or_else(|| format!("character{k}"))
-}
+
 
 /// A pre-roll: some frames, numbered before `frame_start` without going below frame 0.
 fn check_preroll(scene: &Scene, p: super::Preroll) -> std::result::Result<(), String> {
