@@ -73,7 +73,7 @@ struct PushOut {
     skin: vec3<f32>,
     contacts: u32,
     // The nearest candidates within two reaches of where the gathering looked, sorted by
-    // squared distance, then index (Nearest in src/collide/shell/mod.rs).
+    // squared distance, then index (Nearest in src/collide/shell/contact.rs).
     listed: u32,
     near: array<u32, 16>,
     far: array<f32, 16>,

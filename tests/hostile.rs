@@ -825,7 +825,10 @@ fn an_interrupted_bake_keeps_its_frames_and_says_so() {
         while !written() {
             if let Some(status) = child.try_wait().unwrap() {
                 let out = child.wait_with_output().unwrap();
-                panic!("the bake ended ({status}) before its third frame: {}", stderr(&out));
+                panic!(
+                    "the bake ended ({status}) before its third frame: {}",
+                    stderr(&out)
+                );
             }
             assert!(started.elapsed().as_secs() < 60, "no frames after a minute");
             std::thread::sleep(std::time::Duration::from_millis(20));

@@ -157,7 +157,10 @@ fn start_and_wait_for_a_checkpoint(dir: &Path) -> std::process::Child {
     {
         if let Some(status) = child.try_wait().unwrap() {
             let out = child.wait_with_output().unwrap();
-            panic!("the bake ended ({status}) before its first checkpoint: {}", common::stderr(&out));
+            panic!(
+                "the bake ended ({status}) before its first checkpoint: {}",
+                common::stderr(&out)
+            );
         }
         assert!(std::time::Instant::now() < deadline, "no checkpoint came");
         std::thread::sleep(std::time::Duration::from_millis(1));

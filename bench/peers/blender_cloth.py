@@ -139,7 +139,9 @@ def import_character(job):
 def build_cloth(job, quality):
     g = job["cloth"]
     mesh = bpy.data.meshes.new("cloth")
-    mesh.from_pydata([to_blender(p) for p in g["vertices"]], [], g["quads"])
+    # Quads over the lattice's whole cells, and loose edges for the structural springs of
+    # cells a hole cut in half: Blender springs every edge, as drape springs every lattice edge.
+    mesh.from_pydata([to_blender(p) for p in g["vertices"]], g["edges"], g["quads"])
     mesh.update()
     cloth = bpy.data.objects.new("cloth", mesh)
     bpy.context.scene.collection.objects.link(cloth)

@@ -336,6 +336,9 @@ pub struct BenchArgs {
     /// `peers`: Blender's executable (default: `$BLENDER`, then `blender` on the PATH).
     #[arg(long)]
     pub blender: Option<PathBuf>,
+    /// `peers`: keep both tools' bakes (OBJ frames and Blender's jobs) in OUT/bench/peers-frames.
+    #[arg(long)]
+    pub keep: bool,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

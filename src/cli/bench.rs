@@ -215,10 +215,11 @@ fn peers(args: &BenchArgs) -> anyhow::Result<i32> {
         blender: args.blender.clone(),
         frames: args.frames,
         quick: args.quick,
+        keep: args.keep,
     };
     drape::bench::peers::run(std::path::Path::new("."), &out, &options, &mut log)?;
     println!(
-        "wrote {0}/bench/peers.csv, {0}/bench/peers.svg and the table in {0}/accuracy-vs-speed.md",
+        "wrote {0}/bench/peers.csv, {0}/bench/peers-mean.svg, peers-worst.svg and the table in {0}/accuracy-vs-speed.md",
         out.display()
     );
     Ok(0)

@@ -339,8 +339,6 @@ fn check_characters(scene: &Scene) -> std::result::Result<(), Failure> {
     Ok(())
 }
 
-
-
 /// A pre-roll: some frames, numbered before `frame_start` without going below frame 0.
 fn check_preroll(scene: &Scene, p: super::Preroll) -> std::result::Result<(), String> {
     if p.frames() == 0 {

@@ -162,6 +162,7 @@ fn cell_index_is_floor_for_every_kind_of_value() {
 }
 
 use super::*;
+use glam::{IVec3, Vec3A};
 
 #[test]
 fn a_static_shell_sits_exactly_on_its_frame_whenever_the_bake_starts() {
