@@ -197,14 +197,6 @@ fn collider_resolve(c: Collider, xi: vec4<f32>, d_in: vec4<f32>, radius: f32) ->
         return d;
     }
     let n = hit.xyz;
-    var motion = d.xyz + n * push;
-    let tangent = motion - n * dot(motion, n);
-    let t_len = length(tangent);
-    let limit = c.friction * push;
-    if (t_len <= limit) {
-        motion = motion - tangent;
-    } else {
-        motion = motion - tangent * (limit / t_len);
-    }
-    return vec4<f32>(motion, 0.0);
+    let motion = d.xyz + n * push;
+    return vec4<f32>(motion - friction_removed(motion, n, c.friction * push), 0.0);
 }

@@ -101,6 +101,17 @@ struct ShellParticle {
     normal: vec4<f32>,
 }
 
+// The part of `motion` along the surface (unit normal `n`) that Coulomb friction removes: all
+// of it up to `limit`, `limit` of it beyond (collide::friction_removed).
+fn friction_removed(motion: vec3<f32>, n: vec3<f32>, limit: f32) -> vec3<f32> {
+    let tangent = motion - n * dot(motion, n);
+    let t_len = length(tangent);
+    if (t_len <= limit) {
+        return tangent;
+    }
+    return tangent * (limit / t_len);
+}
+
 const B_END: u32 = 0x80000000u;
 const TINY_LENGTH: f32 = 1e-12;
 

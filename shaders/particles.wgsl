@@ -13,8 +13,7 @@ fn pc_cell_of(q: vec4<f32>) -> vec3<i32> {
 }
 
 fn pc_bucket_of(c: vec3<i32>) -> u32 {
-    let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
-    return bitcast<u32>(h) & (contacts.table - 1u);
+    return hash_cell(c) & (contacts.table - 1u);
 }
 
 // Buckets' counts and cursors to zero (table + 1 entries).

@@ -3,6 +3,8 @@
 // Included before `finish.wgsl` (see `gpu::kernels::source`).
 
 const SHELL_FOUND: u32 = 512u;
+// The longest path a swept test traces, in grid cells (shell::SWEPT_PATH_CELLS).
+const SWEPT_PATH_CELLS: f32 = 64.0;
 // Length of a nearby list (shell::NEARBY), an empty entry, and "keep no list".
 const NEARBY: u32 = 16u;
 const NO_ENTRY: u32 = 0xffffffffu;
@@ -13,8 +15,7 @@ const SHELL_NORMALS: u32 = 2u;
 const SHELL_STATIC: u32 = 4u;
 
 fn shell_bucket(c: vec3<i32>, table: u32) -> u32 {
-    let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
-    return bitcast<u32>(h) & (table - 1u);
+    return hash_cell(c) & (table - 1u);
 }
 
 // Where substep `substep`'s data of shell `sh` starts: particles, grid (a shell that never
@@ -228,14 +229,7 @@ fn shell_finish(at: ShellAt, x3: vec3<f32>, acc: PushOut) -> vec4<f32> {
     }
     let skin = acc.skin / f32(acc.contacts);
     let relative = (p - x3) - skin;
-    let tangent = relative - n * dot(relative, n);
-    let t_len = length(tangent);
-    let limit = at.info.friction * push_len;
-    if (t_len <= limit) {
-        p = p - tangent;
-    } else {
-        p = p - tangent * (limit / t_len);
-    }
+    p = p - friction_removed(relative, n, at.info.friction * push_len);
     return vec4<f32>(p - x3, 0.0);
 }
 
@@ -250,9 +244,9 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
     let x3 = x.xyz;
     let d = delta.xyz;
     var p = x3 + d;
-    if ((at.info.flags & (SHELL_SWEPT | SHELL_NORMALS)) == (SHELL_SWEPT | SHELL_NORMALS) && length(d) <= 64.0 * at.info.cell) {
+    if ((at.info.flags & (SHELL_SWEPT | SHELL_NORMALS)) == (SHELL_SWEPT | SHELL_NORMALS) && length(d) <= SWEPT_PATH_CELLS * at.info.cell) {
         // The cells around the path (HashGrid::near_segment), gathered once for both tests.
-        var found: array<u32, 512>;
+        var found: array<u32, SHELL_FOUND>;
         var count = 0u;
         let lo = vec3<i32>(floor(min(x3, p) / at.info.cell)) - vec3<i32>(1);
         let hi = vec3<i32>(floor(max(x3, p) / at.info.cell)) + vec3<i32>(1);

@@ -90,8 +90,7 @@ fn cursor_at(info: SkinInfo, substep: u32) -> u32 {
 // The shell grid's bucket of a point (shell_bucket and the cell in shells.wgsl).
 fn skin_bucket(p: vec3<f32>, info: SkinInfo) -> u32 {
     let c = vec3<i32>(floor(p / info.cell));
-    let h = (c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791);
-    return bitcast<u32>(h) & (info.table - 1u);
+    return hash_cell(c) & (info.table - 1u);
 }
 
 // glam's try_normalize: v / |v| when that is finite and not zero, else (0, 0, 0) and false.

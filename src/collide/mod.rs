@@ -16,6 +16,35 @@ pub use shell::ShellCollider;
 use crate::scene::{ColliderShape, ColliderSpec};
 use glam::{EulerRot, Quat, Vec2, Vec3, Vec4};
 
+/// Primes of the spatial hash of a grid cell (Teschner et al. 2003), one set for every grid
+/// (the shells' and particle collisions'; `HASH_X`, `HASH_Y` and `HASH_Z` in
+/// `shaders/common.wgsl`, checked by `tests/shaders.rs`).
+pub const HASH_PRIMES: [i32; 3] = [73_856_093, 19_349_663, 83_492_791];
+
+/// The spatial hash of cell `c` (wrapping 32-bit products, as the GPU computes them:
+/// `hash_cell` in `shaders/common.wgsl`).
+#[inline]
+pub fn hash_cell(c: [i32; 3]) -> u32 {
+    (c[0].wrapping_mul(HASH_PRIMES[0])
+        ^ c[1].wrapping_mul(HASH_PRIMES[1])
+        ^ c[2].wrapping_mul(HASH_PRIMES[2])) as u32
+}
+
+/// The part of `motion` along the surface (unit normal `n`) that Coulomb friction removes:
+/// all of it up to `limit` (μ × the push: static friction), `limit` of it beyond (kinetic
+/// friction). The one definition for colliders and shells (`friction_removed` in
+/// `shaders/common.wgsl` is its twin).
+#[inline(always)]
+pub fn friction_removed(motion: Vec3, n: Vec3, limit: f32) -> Vec3 {
+    let tangent = motion - n * motion.dot(n);
+    let t_len = tangent.length();
+    if t_len <= limit {
+        tangent
+    } else {
+        tangent * (limit / t_len)
+    }
+}
+
 /// An analytic shape.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Shape {
@@ -296,15 +325,7 @@ impl Collider {
             return delta;
         }
         let motion = delta.truncate() + n * push;
-        let tangent = motion - n * motion.dot(n);
-        let t_len = tangent.length();
-        let limit = self.friction * push;
-        let motion = if t_len <= limit {
-            motion - tangent
-        } else {
-            motion - tangent * (limit / t_len)
-        };
-        motion.extend(0.0)
+        (motion - friction_removed(motion, n, self.friction * push)).extend(0.0)
     }
 
     /// The fraction of the step at which a particle starting at `x` (outside) and moving by

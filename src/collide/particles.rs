@@ -116,10 +116,7 @@ impl ParticleCollisions {
 
     #[inline]
     fn bucket_of(&self, c: [i32; 3]) -> usize {
-        let h = (c[0].wrapping_mul(73_856_093))
-            ^ (c[1].wrapping_mul(19_349_663))
-            ^ (c[2].wrapping_mul(83_492_791));
-        (h as u32 as usize) & (self.table - 1)
+        (super::hash_cell(c) as usize) & (self.table - 1)
     }
 
     /// Sorts the particles at positions `q` into `grid` (counting sort by bucket).

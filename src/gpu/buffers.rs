@@ -477,7 +477,11 @@ impl ContactGroup {
         );
         let shell_particle = buffer(
             "shell_particle",
-            &vec![0u8; 48 * (shell_stride * sim.substeps).max(1) as usize],
+            &vec![
+                0u8;
+                super::layout::SHELL_PARTICLE_BYTES as usize
+                    * (shell_stride * sim.substeps).max(1) as usize
+            ],
             READ_REFRESHED,
         );
         let shell_grid = buffer(

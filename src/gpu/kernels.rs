@@ -1,10 +1,14 @@
 //! Every compute pipeline, built once per device from the WGSL in `shaders/` (each kernel file
-//! is compiled together with `shaders/common.wgsl`, the one definition of the shared structs).
+//! is compiled together with `shaders/common.wgsl`, the one definition of the shared structs,
+//! and `shaders/hash.wgsl`, the grids' hash).
 
 use super::layout::GpuParams;
 
-/// The shared WGSL: structs, bindings and constraint functions.
-pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+/// The shared WGSL: the grids' hash, structs, bindings and constraint functions.
+pub const COMMON: &str = concat!(
+    include_str!("../../shaders/hash.wgsl"),
+    include_str!("../../shaders/common.wgsl")
+);
 
 /// Kernel files and their entry points.
 pub const KERNEL_FILES: [(&str, &str, &[&str]); 7] = [

@@ -77,6 +77,24 @@ pub struct GpuContacts {
     pub nearby: u32,
 }
 
+/// A shell particle at the end of a substep (`ShellParticle` in the WGSL): position, motion
+/// over the substep and skin normal, `w` unused. The CPU hands shells over as
+/// [`ShellSnapshot`](crate::collide::shell::ShellSnapshot)s, whose `[Vec4; 3]` per particle has
+/// this layout.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuShellParticle {
+    pub position: [f32; 4],
+    pub motion: [f32; 4],
+    pub normal: [f32; 4],
+}
+
+/// Bytes of one shell particle in the GPU's buffers.
+pub const SHELL_PARTICLE_BYTES: u64 = std::mem::size_of::<GpuShellParticle>() as u64;
+
+const _: () =
+    assert!(std::mem::size_of::<GpuShellParticle>() == std::mem::size_of::<[glam::Vec4; 3]>());
+
 /// A character's shell (`ShellInfo` in the WGSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -122,7 +140,14 @@ pub mod collider_kind {
 
 /// Constants the kernels share with the Rust code, by their WGSL name: `tests/shaders.rs`
 /// checks that every one is declared in some kernel with this value.
-pub const SHARED_CONSTANTS: [(&str, f64); 15] = [
+pub const SHARED_CONSTANTS: [(&str, f64); 19] = [
+    (
+        "SWEPT_PATH_CELLS",
+        crate::collide::shell::SWEPT_PATH_CELLS as f64,
+    ),
+    ("HASH_X", crate::collide::HASH_PRIMES[0] as f64),
+    ("HASH_Y", crate::collide::HASH_PRIMES[1] as f64),
+    ("HASH_Z", crate::collide::HASH_PRIMES[2] as f64),
     ("NEARBY", crate::collide::shell::NEARBY as f64),
     ("SHELL_FOUND", crate::collide::shell::SHELL_FOUND as f64),
     ("SKIP_STEPS", crate::collide::particles::SKIP_STEPS as f64),
@@ -166,7 +191,7 @@ macro_rules! offsets {
 
 /// Every member of every mirrored WGSL struct with its offset in the Rust mirror, for the layout
 /// test (sizes alone would miss two members swapped).
-pub const MIRROR_OFFSETS: [(&str, &[(&str, usize)]); 8] = [
+pub const MIRROR_OFFSETS: [(&str, &[(&str, usize)]); 9] = [
     offsets!(
         "Params",
         GpuParams,
@@ -215,6 +240,11 @@ pub const MIRROR_OFFSETS: [(&str, &[(&str, usize)]); 8] = [
         GpuShellInfo,
         [first, count, grid, table, radius, friction, cell, flags]
     ),
+    offsets!(
+        "ShellParticle",
+        GpuShellParticle,
+        [position, motion, normal]
+    ),
     offsets!("Slot", crate::sim::model::Slot, [neighbour, spring, weight]),
     offsets!("Spring", crate::sim::model::ModelSpring, [a, b, rest]),
     offsets!(
@@ -229,7 +259,7 @@ pub const MIRRORS: [(&str, usize); 9] = [
     ("Params", std::mem::size_of::<GpuParams>()),
     ("Contacts", std::mem::size_of::<GpuContacts>()),
     ("ShellInfo", std::mem::size_of::<GpuShellInfo>()),
-    ("ShellParticle", 48),
+    ("ShellParticle", std::mem::size_of::<GpuShellParticle>()),
     ("Particle", std::mem::size_of::<GpuParticle>()),
     ("Collider", std::mem::size_of::<GpuCollider>()),
     ("Slot", std::mem::size_of::<crate::sim::model::Slot>()),

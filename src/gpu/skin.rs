@@ -14,8 +14,11 @@ use crate::sim::Simulation;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-/// The kernel file.
-pub const SOURCE: &str = include_str!("../../shaders/skin.wgsl");
+/// The kernel file, after the grids' hash it shares with the shell kernels.
+pub const SOURCE: &str = concat!(
+    include_str!("../../shaders/hash.wgsl"),
+    include_str!("../../shaders/skin.wgsl")
+);
 
 /// Entry points, in the order a frame runs them.
 pub const ENTRIES: [&str; 6] = [

@@ -10,7 +10,7 @@ use super::buffers::{ContactGroup, ResidualGroup, StateGroup, PARAMS_COLOUR, PAR
 use super::context::GpuContext;
 use super::kernels::Kernels;
 use super::layout::shell_flags::STATIC;
-use super::layout::{GpuCollider, PARAMS_STRIDE};
+use super::layout::{GpuCollider, PARAMS_STRIDE, SHELL_PARTICLE_BYTES};
 use crate::collide::Shape;
 use crate::error::{Error, Result};
 use crate::scene::SolverKind;
@@ -73,9 +73,9 @@ fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
             ),
         });
     }
-    // Characters' shells take one share per substep (particles, 48 bytes each, and grids).
+    // Characters' shells take one share per substep (particles and grids).
     let shell_particles: usize = sim.shells.iter().map(|s| s.most_particles()).sum();
-    let shell_bytes = shell_particles as u64 * 48 * sim.substeps as u64;
+    let shell_bytes = shell_particles as u64 * SHELL_PARTICLE_BYTES * sim.substeps as u64;
     if shell_bytes > limit as u64 {
         return Err(Error::Gpu {
             reason: format!(
@@ -370,7 +370,11 @@ impl GpuSimulation {
         // A shell that never moves sits in substep 0's share only.
         let substep = if info.flags & STATIC != 0 { 0 } else { substep };
         let first = (substep * c.shell_stride + info.first) as u64;
-        let particles = self.read_back(&c.shell_particle, 48 * first, 48 * info.count as u64)?;
+        let particles = self.read_back(
+            &c.shell_particle,
+            SHELL_PARTICLE_BYTES * first,
+            SHELL_PARTICLE_BYTES * info.count as u64,
+        )?;
         let grid = (substep * c.grid_stride + info.grid) as u64;
         let words = (info.table + 1 + info.count) as u64;
         let grid = self.read_back(&c.shell_grid, 4 * grid, 4 * words)?;
@@ -444,7 +448,7 @@ impl GpuSimulation {
                 let at = substep as u64 * self.contact.shell_stride as u64 + info.first as u64;
                 upload(
                     &self.contact.shell_particle,
-                    at * 48,
+                    at * SHELL_PARTICLE_BYTES,
                     bytemuck::cast_slice(particles),
                 );
                 let at = substep as u64 * self.contact.grid_stride as u64 + info.grid as u64;

@@ -121,6 +121,10 @@ pub const NEARBY: usize = 16;
 /// instead (on the GPU a fixed array; `finish.wgsl` has the same, checked by `tests/shaders.rs`).
 pub const SHELL_FOUND: usize = 512;
 
+/// The longest path a swept test traces, in grid cells (`shells.wgsl` has the same, checked by
+/// `tests/shaders.rs`): nothing in a bake moves that far in one substep.
+pub const SWEPT_PATH_CELLS: f32 = 64.0;
+
 /// Point indices a run's copy moves at once ([`HashGrid::gather_segment`]).
 pub(super) const RUN_COPY: usize = 8;
 
@@ -172,13 +176,16 @@ impl ShellCollider {
         radius: f32,
         mut nearby: Option<&mut Nearby>,
     ) -> Vec4 {
-        // Paths longer than 64 grid cells are not traced (nothing in a bake moves that far in
-        // one substep); the end point is still tested.
+        // Paths longer than SWEPT_PATH_CELLS grid cells are not traced (nothing in a bake moves
+        // that far in one substep); the end point is still tested.
         let reach = self.radius + radius;
         let x3 = x.truncate();
         let d = delta.truncate();
         let p = x3 + d;
-        if self.swept && !self.now_normal.is_empty() && d.length() <= 64.0 * self.grid.cell {
+        if self.swept
+            && !self.now_normal.is_empty()
+            && d.length() <= SWEPT_PATH_CELLS * self.grid.cell
+        {
             // One walk over the cells around the path serves both tests (they cover the end
             // point's neighbourhood too: a cell is as wide as the reach).
             // Not zeroed: only the first `count` entries are written and read (2 KB cleared
@@ -399,14 +406,7 @@ impl ShellCollider {
         };
         let skin = contact.skin / contact.count as f32;
         let relative = (p - x3) - skin;
-        let tangent = relative - n * relative.dot(n);
-        let t_len = tangent.length();
-        let limit = self.friction * push_len;
-        p -= if t_len <= limit {
-            tangent
-        } else {
-            tangent * (limit / t_len)
-        };
+        p -= crate::collide::friction_removed(relative, n, self.friction * push_len);
         (p - x3).extend(0.0)
     }
 

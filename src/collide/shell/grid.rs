@@ -266,9 +266,7 @@ pub(super) fn keeping_the_pool_awake(work: impl FnOnce() + Send) {
 /// The bucket of cell `c` among a power-of-two number of `buckets` (wrapping 32-bit products,
 /// as the GPU computes it too).
 pub(super) fn bucket(c: IVec3, buckets: usize) -> usize {
-    let h =
-        c.x.wrapping_mul(73_856_093) ^ c.y.wrapping_mul(19_349_663) ^ c.z.wrapping_mul(83_492_791);
-    (h as u32 as usize) & (buckets - 1)
+    (crate::collide::hash_cell(c.to_array()) as usize) & (buckets - 1)
 }
 
 /// The lattice cell of `p`: `(p / cell).floor().as_ivec3()` without a call to the C library's

@@ -37,7 +37,7 @@ use contact::*;
 use grid::*;
 use placement::*;
 
-pub use contact::{listed, Nearby, NEARBY, SHELL_FOUND};
+pub use contact::{listed, Nearby, NEARBY, SHELL_FOUND, SWEPT_PATH_CELLS};
 pub use near::NearGarments;
 pub use placement::frame_weight;
 
