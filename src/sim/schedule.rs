@@ -20,7 +20,8 @@
 //!    commit (x += Δ, v = Δ/h) and the next substep's prediction, each particle alone.
 //!
 //! Why collision passes sit between shares of the iterations: a stop at the surface reaches the
-//! rest of the cloth only through the solve that follows it (see `docs/benchmarks-history.md`, scene P).
+//! rest of the cloth only through the solve that follows it (see `docs/benchmarks-history.md`,
+//! scene P).
 
 use crate::scene::SolverSettings;
 use std::time::Instant;
