@@ -522,6 +522,8 @@ fn write_job(peer: &Peer, path: &Path) -> Result<()> {
             })
         }
     };
+    let quads = quads(g);
+    let edges = loose_edges(g, &quads);
     let job = serde_json::json!({
         "fps": s.fps,
         "frames": s.frames,
@@ -531,8 +533,8 @@ fn write_job(peer: &Peer, path: &Path) -> Result<()> {
         "plane": !s.colliders.is_empty(),
         "cloth": {
             "vertices": g.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-            "quads": quads(g),
-            "edges": loose_edges(g, &quads(g)),
+            "quads": quads,
+            "edges": edges,
             "pins": g.pins,
             "vertex_mass": g.particle_mass,
             "stretch": spec.stiffness.stretch,
