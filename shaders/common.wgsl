@@ -48,16 +48,16 @@ struct Tether {
     rest: f32,
 }
 
-// An analytic collider (80 bytes): kind 0 plane (normal, offset), 1 sphere (center, radius),
-// 2 axis-aligned box (center, half extents), 3 capsule (start, end, radius), 4 upright funnel
-// (spout center, radius, top radius in offset, second = (height, half thickness)), 5 wedge
-// (center, half extents; blade down along Z).
+// An analytic collider (80 bytes): kind 0 plane (normal, offset), 1 sphere (centre, radius),
+// 2 axis-aligned box (centre, half extents), 3 capsule (start, end, radius), 4 upright funnel
+// (spout centre, radius, top radius in offset, second = (height, half thickness)), 5 wedge
+// (centre, half extents; blade down along Z).
 struct Collider {
     kind: u32,
     friction: f32,
     radius: f32,
     offset: f32,
-    vector: vec4<f32>,         // plane normal, sphere or box center, capsule start
+    vector: vec4<f32>,         // plane normal, sphere or box centre, capsule start
     second: vec4<f32>,         // box half extents, capsule end; w = 1: swept test on
     rotation: vec4<f32>,       // box, wedge: orientation (unit quaternion x, y, z, w)
     moved: vec4<f32>,          // motion over the substep (xyz)

@@ -60,7 +60,7 @@ impl Backend {
                 sim.step_frame();
                 Ok(())
             }
-            Backend::Gpu(g) => g.step_frame(sim),
+            Backend::Gpu(g) => g.step_frame(sim.frame_parts()),
         }
     }
 
@@ -74,7 +74,7 @@ impl Backend {
     ) -> Result<bool> {
         match self {
             Backend::Cpu => Ok(sim.step_frame_or_stop(stop)),
-            Backend::Gpu(g) => g.step_frame(sim).map(|()| true),
+            Backend::Gpu(g) => g.step_frame(sim.frame_parts()).map(|()| true),
         }
     }
 

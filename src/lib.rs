@@ -4,7 +4,9 @@
 //! The stages, in the order data flows through them (and the order `sim::Simulation::substep`
 //! runs the per-step ones):
 //! 1. [`scene`]: read and validate the scene file (defaults fill everything left out).
-//! 2. [`character`]: import animated bodies (assimp) as frames and sample collision shells;
+//! 2. [`mesh`]: read mesh files (assimp, and glTF by node index) into plain assets, the
+//!    animated mesh and vertex normals every later stage shares;
+//!    [`character`]: animated bodies as frames at the scene's rate, and their collision shells;
 //!    [`garment`]: build each garment's particle grid, springs and colouring.
 //! 3. [`sim`]: lay the garments out for the solver ([`sim::Model`], [`sim::State`]) and step
 //!    through the substep's stages, written once in [`sim::schedule`] (predict, solve with
@@ -29,6 +31,7 @@ pub mod garment;
 pub mod gpu;
 pub mod limits;
 pub mod massspring;
+pub mod mesh;
 pub mod render;
 pub mod report;
 pub mod scene;

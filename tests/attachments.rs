@@ -18,7 +18,8 @@ const CURTAIN: &str = r#"{ "frames": 90, "substeps": 10, "backend": "cpu",
 
 /// Each attached particle (storage index) and its rest position on the rail.
 fn rail_rest(sim: &Simulation) -> Vec<(usize, Vec3)> {
-    sim.attachments
+    sim.drivers
+        .attachments
         .list
         .iter()
         .map(|a| match a.target {
@@ -31,7 +32,7 @@ fn rail_rest(sim: &Simulation) -> Vec<(usize, Vec3)> {
 #[test]
 fn a_curtain_rail_carries_its_top_edge_exactly() {
     let scene = common::scene(CURTAIN);
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     let rest = rail_rest(&sim);
     assert_eq!(rest.len(), 20, "the top row");
     let mut worst = 0.0f32;
@@ -58,8 +59,8 @@ fn a_turning_pivot_carries_a_rope_end_exactly() {
                      "attachments": [{ "particles": [[0]], "pivot": [0, 1, 0],
                                        "keyframes": [{ "time": 0 }, { "time": 0.5, "rotation": [0, 90, 0] }] }] }] }"#;
     let scene = common::scene(text);
-    let mut sim = Simulation::new(&scene);
-    let i = sim.attachments.list[0].particle as usize;
+    let mut sim = Simulation::new(&scene).unwrap();
+    let i = sim.drivers.attachments.list[0].particle as usize;
     let start = sim.state.positions[i].truncate();
     for frame in 1..=scene.frames {
         sim.step_frame();
@@ -221,14 +222,14 @@ fn the_gpu_carries_the_curtain_as_the_cpu_does() {
         return;
     };
     let scene = common::scene(CURTAIN);
-    let mut cpu = Simulation::new(&scene);
-    let mut on_gpu = Simulation::new(&scene);
+    let mut cpu = Simulation::new(&scene).unwrap();
+    let mut on_gpu = Simulation::new(&scene).unwrap();
     let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     let rest = rail_rest(&on_gpu);
     let (mut worst, mut off_rail) = (0.0f32, 0.0f32);
     for frame in 1..=scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         let gap = common::largest_gap(&cpu, &on_gpu);
         if frame <= 30 {
             worst = worst.max(gap);

@@ -126,8 +126,8 @@ const RAIL: &str = r#"{ "frames": 10, "substeps": 5, "backend": "cpu",
 #[test]
 fn a_frame_simulated_again_at_another_budget_starts_at_its_own_time() {
     let scene = common::scene(RAIL);
-    let mut retried = drape::sim::Simulation::new(&scene);
-    let mut straight = drape::sim::Simulation::new(&scene);
+    let mut retried = drape::sim::Simulation::new(&scene).unwrap();
+    let mut straight = drape::sim::Simulation::new(&scene).unwrap();
     for _ in 0..3 {
         retried.step_frame();
         straight.step_frame();
@@ -161,7 +161,7 @@ fn a_frame_simulated_again_at_another_budget_starts_at_its_own_time() {
 fn a_raised_budget_takes_out_the_stretch_a_cheaper_one_left_without_throwing_the_cloth() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/flag.json");
     let scene = Scene::load(&path).expect("the flag");
-    let mut sim = drape::sim::Simulation::new(&scene);
+    let mut sim = drape::sim::Simulation::new(&scene).unwrap();
     let initial = sim.energy();
     sim.set_budget(10, 2, 1);
     for _ in 0..26 {

@@ -674,7 +674,7 @@ fn meshes_are_chosen_by_mesh_node_or_material_name() {
         Character::from_asset(&asset, path, &options, 60.0, 1)
     };
     let all = load(None).unwrap();
-    let count = |pick: &dyn Fn(&drape::character::import::Mesh) -> bool| -> usize {
+    let count = |pick: &dyn Fn(&drape::mesh::import::Mesh) -> bool| -> usize {
         asset
             .mesh_triangle_ranges()
             .iter()

@@ -217,7 +217,7 @@ fn impossible_values_name_their_field() {
         ),
         (
             r#"{ "colliders": [{ "kind": "sphere", "radius": 1 }], "garments": [{}] }"#,
-            "colliders[0].center",
+            "colliders[0].centre",
         ),
     ] {
         let err = rejected(scene, &[]);

@@ -13,7 +13,7 @@ use glam::Vec3;
 fn signed_distances_of_box_and_capsule() {
     let boxed = Collider {
         shape: Shape::Box {
-            center: Vec3::new(1.0, 0.0, 0.0),
+            centre: Vec3::new(1.0, 0.0, 0.0),
             half: Vec3::new(0.5, 1.0, 2.0),
             rotation: glam::Quat::IDENTITY,
         },
@@ -76,7 +76,7 @@ fn collider(shape: Shape) -> Collider {
 
 fn funnel() -> Collider {
     collider(Shape::Funnel {
-        center: Vec3::new(0.0, 0.5, 0.0),
+        centre: Vec3::new(0.0, 0.5, 0.0),
         radius: 0.1,
         top_radius: 0.4,
         height: 0.4,
@@ -86,7 +86,7 @@ fn funnel() -> Collider {
 
 fn wedge() -> Collider {
     collider(Shape::Wedge {
-        center: Vec3::new(0.0, 1.0, 0.0),
+        centre: Vec3::new(0.0, 1.0, 0.0),
         half: Vec3::new(0.2, 0.3, 0.5),
         rotation: glam::Quat::from_rotation_y(0.4),
     })
@@ -176,8 +176,8 @@ fn cloth_dropped_into_a_funnel_passes_through_its_spout() {
     let mut scene = scene;
     scene.particle_collisions = false;
     scene.frames = 120;
-    let mut sim = Simulation::new(&scene);
-    let wall = sim.colliders[0];
+    let mut sim = Simulation::new(&scene).unwrap();
+    let wall = sim.drivers.colliders[0];
     let mut deepest = 0.0f32;
     for _ in 0..scene.frames {
         sim.step_frame();
@@ -204,7 +204,7 @@ fn cloth_dropped_into_a_funnel_passes_through_its_spout() {
 #[test]
 fn cloth_rests_on_a_box_and_a_capsule_without_entering() {
     for collider in [
-        r#"{ "kind": "box", "center": [0, 0.3, 0], "size": [0.5, 0.6, 0.5] }"#,
+        r#"{ "kind": "box", "centre": [0, 0.3, 0], "size": [0.5, 0.6, 0.5] }"#,
         r#"{ "kind": "capsule", "start": [-0.4, 0.4, 0], "end": [0.4, 0.4, 0], "radius": 0.1 }"#,
     ] {
         let scene = common::scene(&format!(
@@ -212,12 +212,12 @@ fn cloth_rests_on_a_box_and_a_capsule_without_entering() {
                   "garments": [{{ "resolution": [30, 30], "size": [1, 1], "position": [0, 0.9, 0] }}],
                   "colliders": [{collider}, {{ "kind": "plane" }}] }}"#
         ));
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(&scene).unwrap();
         let mut deepest = 0.0f32;
         for _ in 0..scene.frames {
             sim.step_frame();
             for q in &sim.state.positions {
-                deepest = deepest.max(-sim.colliders[0].distance(q.truncate()).0);
+                deepest = deepest.max(-sim.drivers.colliders[0].distance(q.truncate()).0);
             }
         }
         // Particles keep half the 5 mm thickness from the surface: none ever got inside.
@@ -241,7 +241,7 @@ fn the_swept_test_stops_paths_that_cross_a_thin_plate() {
     // A 1 cm plate; a particle crossing it within one step ends beyond it unless swept.
     let plate = |swept| Collider {
         shape: Shape::Box {
-            center: Vec3::ZERO,
+            centre: Vec3::ZERO,
             half: Vec3::new(1.0, 0.005, 1.0),
             rotation: glam::Quat::IDENTITY,
         },
@@ -271,7 +271,7 @@ fn a_fast_sphere_carries_the_particles_it_sweeps_over() {
     // The sphere moved 0.5 m along +Z in one step, right through a particle at rest.
     let sphere = |swept| Collider {
         shape: Shape::Sphere {
-            center: Vec3::new(0.0, 0.0, 0.3),
+            centre: Vec3::new(0.0, 0.0, 0.3),
             radius: 0.1,
         },
         friction: 0.0,
@@ -301,9 +301,9 @@ fn cloth_falling_fast_onto_a_thin_plate_stays_on_it_only_with_the_swept_test() {
         let scene = common::scene(&format!(
             r#"{{ "frames": 40, "substeps": 1, "backend": "cpu", "swept_collisions": {swept},
                   "garments": [{{ "resolution": [12, 12], "size": [0.6, 0.6], "position": [0, 1.6, 0] }}],
-                  "colliders": [{{ "kind": "box", "center": [0, 0.5, 0], "size": [1.5, 0.01, 1.5] }}] }}"#
+                  "colliders": [{{ "kind": "box", "centre": [0, 0.5, 0], "size": [1.5, 0.01, 1.5] }}] }}"#
         ));
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(&scene).unwrap();
         for _ in 0..scene.frames {
             sim.step_frame();
         }
@@ -330,7 +330,7 @@ fn the_report_lists_penetrations_frame_by_frame() {
         "scene.json",
         r#"{ "frames": 30, "substeps": 10, "backend": "cpu",
              "garments": [{ "resolution": [16, 16], "size": [1, 1], "position": [0, 0.9, 0] }],
-             "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }, { "kind": "plane" }] }"#,
+             "colliders": [{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.3 }, { "kind": "plane" }] }"#,
     );
     let out = common::drape(
         dir.path(),
@@ -361,32 +361,32 @@ fn bad_funnels_and_wedges_are_input_errors() {
     let dir = common::temp_dir();
     for (collider, field, expect) in [
         (
-            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4 }"#,
+            r#"{ "kind": "funnel", "centre": [0, 1, 0], "radius": 0.1, "top_radius": 0.4 }"#,
             "height",
             "needs height",
         ),
         (
-            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "thickness": 0 }"#,
+            r#"{ "kind": "funnel", "centre": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "thickness": 0 }"#,
             "thickness",
             "above zero",
         ),
         (
-            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "size": [1, 1, 1] }"#,
+            r#"{ "kind": "funnel", "centre": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "size": [1, 1, 1] }"#,
             "size",
             "a funnel takes",
         ),
         (
-            r#"{ "kind": "funnel", "center": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "keyframes": [{ "time": 0 }, { "time": 1, "rotation": [90, 0, 0] }] }"#,
+            r#"{ "kind": "funnel", "centre": [0, 1, 0], "radius": 0.1, "top_radius": 0.4, "height": 0.3, "keyframes": [{ "time": 0 }, { "time": 1, "rotation": [90, 0, 0] }] }"#,
             "keyframes",
             "upright",
         ),
         (
-            r#"{ "kind": "wedge", "center": [0, 1, 0] }"#,
+            r#"{ "kind": "wedge", "centre": [0, 1, 0] }"#,
             "size",
             "needs size",
         ),
         (
-            r#"{ "kind": "wedge", "center": [0, 1, 0], "size": [0.2, -1, 1] }"#,
+            r#"{ "kind": "wedge", "centre": [0, 1, 0], "size": [0.2, -1, 1] }"#,
             "size",
             "longer than 0",
         ),
@@ -404,4 +404,26 @@ fn bad_funnels_and_wedges_are_input_errors() {
             "{collider}: {err}"
         );
     }
+}
+
+#[test]
+fn american_spellings_of_keys_read_as_the_british_ones() {
+    let british = common::scene(
+        r#"{ "garments": [{ "colour": [0.2, 0.4, 0.6] }],
+             "colliders": [{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.3 }] }"#,
+    );
+    let american = common::scene(
+        r#"{ "garments": [{ "color": [0.2, 0.4, 0.6] }],
+             "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }] }"#,
+    );
+    assert_eq!(american.garments[0].colour, Some([0.2, 0.4, 0.6]));
+    assert_eq!(
+        format!("{:?}", american.colliders),
+        format!("{:?}", british.colliders)
+    );
+    let sphere = Collider::from_spec(&american.colliders[0]).shape;
+    assert!(matches!(sphere, Shape::Sphere { centre, .. } if centre == Vec3::new(0.0, 0.5, 0.0)));
+    // Both spellings at once name one key twice.
+    let twice = r#"{ "colliders": [{ "kind": "sphere", "centre": [0, 0.5, 0], "center": [0, 1, 0], "radius": 0.3 }] }"#;
+    assert!(drape::scene::Scene::parse(twice, "t.json").is_err());
 }

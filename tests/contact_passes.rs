@@ -17,19 +17,19 @@ fn scene(passes: u32, substeps: u32) -> drape::scene::Scene {
               "solver": {{ "iterations": 10, "contact_passes": {passes} }},
               "garments": [{{ "name": "cloth", "resolution": [40, 40], "size": [1, 1], "mass": 0.1,
                              "position": [0, 1.2, 0] }}],
-              "colliders": [{{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.15 }}] }}"#
+              "colliders": [{{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.15 }}] }}"#
     ))
 }
 
 /// The largest strain of any frame over `frames` frames, and the deepest any particle was inside
 /// the sphere [m].
 fn landing(passes: u32, substeps: u32, frames: u32) -> (f32, f32) {
-    let mut sim = Simulation::new(&scene(passes, substeps));
+    let mut sim = Simulation::new(&scene(passes, substeps)).unwrap();
     let (mut strain, mut deepest) = (0.0f32, 0.0f32);
     for _ in 0..frames {
         sim.step_frame();
         strain = strain.max(sim.constraint_error().max_strain as f32);
-        let p = drape::collide::penetrations(&sim.colliders, &sim.free_positions());
+        let p = drape::collide::penetrations(&sim.drivers.colliders, &sim.free_positions());
         deepest = deepest.max(p[0].deepest);
     }
     (strain, deepest)
@@ -60,8 +60,8 @@ fn passes_without_contacts_leave_the_solve_as_it_was() {
                   "colliders": [{{ "kind": "plane", "point": [0, -5, 0] }}] }}"#
         ))
     };
-    let mut one = Simulation::new(&hanging(1));
-    let mut three = Simulation::new(&hanging(3));
+    let mut one = Simulation::new(&hanging(1)).unwrap();
+    let mut three = Simulation::new(&hanging(3)).unwrap();
     for _ in 0..20 {
         one.step_frame();
         three.step_frame();
@@ -109,7 +109,7 @@ fn passes_left_out_by_the_slack_change_no_bit() {
         common::simulation(&scene, dir.path()),
         common::simulation(&scene, dir.path()),
     );
-    full.pass_slack_enabled = false;
+    full.set_pass_slack(false);
     for frame in 0..scene.frames {
         slack.step_frame();
         full.step_frame();

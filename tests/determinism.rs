@@ -16,7 +16,7 @@ fn scene(mass: f32) -> String {
         r#"{{ "frames": 20, "backend": "cpu", "particle_collisions": true,
               "solver": {{ "iterations": 6, "contact_passes": 2 }},
               "characters": [{{ "name": "stool", "file": "{STOOL}", "radius": 0.03 }}],
-              "colliders": [{{ "kind": "plane" }}, {{ "kind": "sphere", "center": [0.3, 0.5, 0], "radius": 0.1 }}],
+              "colliders": [{{ "kind": "plane" }}, {{ "kind": "sphere", "centre": [0.3, 0.5, 0], "radius": 0.1 }}],
               "garments": [{{ "name": "cloth", "resolution": [16, 16], "mass": {mass}, "position": [0, 0.8, 0],
                               "attachments": [{{ "particles": [[0, 0]],
                                                 "keyframes": [{{ "time": 0 }}, {{ "time": 0.3, "translation": [0, 0.1, 0] }}] }}] }}] }}"#

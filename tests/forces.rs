@@ -154,7 +154,7 @@ fn the_gpu_blows_and_pulls_as_the_cpu_does() {
     let mut gap = 0.0f32;
     for _ in 0..scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         gap = gap.max(common::largest_gap(&cpu, &on_gpu));
     }
     let mean_z = |sim: &drape::sim::Simulation| {
@@ -224,7 +224,7 @@ fn without_integration_the_fields_move_nothing_on_either_backend() {
     let mut on_gpu = build(wind);
     let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     for _ in 0..3 {
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
     }
     let gap = common::largest_gap(&blown, &on_gpu);
     assert!(gap <= 1e-6, "CPU and GPU differ by {gap} m");

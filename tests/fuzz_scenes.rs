@@ -330,7 +330,7 @@ fn seeds() -> Vec<(String, PathBuf)> {
         scenes.clone(),
     ));
     out.push((
-        r#"{ "frames": 2, "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.2 }],
+        r#"{ "frames": 2, "colliders": [{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.2 }],
              "garments": [{ "resolution": [8, 8], "attachments": [{ "particles": "corners",
              "keyframes": [{ "time": 0 }, { "time": 1, "translation": [0, 1, 0] }] }] }] }"#
             .into(),

@@ -119,7 +119,7 @@ fn gpu_matches_cpu_on_the_stool(contact_passes: u32, close_until: u32) {
     let mut deepest = 0.0f32;
     for frame in 1..=scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         // The stool never moves: its shell goes up with the first frame, then nothing does
         // (no attachments, no moving collider) and the parity below still holds.
         let uploaded = gpu.uploaded_last_frame();
@@ -132,7 +132,7 @@ fn gpu_matches_cpu_on_the_stool(contact_passes: u32, close_until: u32) {
             landing = landing.max(common::largest_gap(&cpu, &on_gpu));
         }
         deepest = deepest.max(
-            on_gpu.shells[0]
+            on_gpu.drivers.shells[0]
                 .penetration(&on_gpu.free_positions())
                 .deepest,
         );
@@ -308,13 +308,13 @@ fn the_gpu_follows_a_character_whose_topology_changes() {
     let scene = common::cloth_on_shrinking_floor(dir.path(), 16, 3);
     let (mut cpu, mut on_gpu, mut gpu) = on_both_backends(&scene, dir.path(), ctx);
     assert!(
-        on_gpu.shells[0].frames[0].len() != on_gpu.shells[0].frames[15].len(),
+        on_gpu.drivers.shells[0].frames[0].len() != on_gpu.drivers.shells[0].frames[15].len(),
         "the floor's shell is re-sampled"
     );
     let mut gap = 0.0f32;
     for _ in 0..scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         gap = gap.max(common::largest_gap(&cpu, &on_gpu));
     }
     let lowest = on_gpu
@@ -353,8 +353,8 @@ fn the_gpu_places_a_moving_characters_shell_from_its_vertices() {
     let (mut cpu, mut on_gpu, mut gpu) = on_both_backends(&scene, dir.path(), ctx);
     // Every shell particle is compared: the CPU moves them all (a focused shell moves only
     // those near the cloth, with the same cloth).
-    cpu.focus_enabled = false;
-    let vertices = on_gpu.shells[0]
+    cpu.drivers.focus.enabled = false;
+    let vertices = on_gpu.drivers.shells[0]
         .skin
         .as_ref()
         .expect("bound")
@@ -362,14 +362,14 @@ fn the_gpu_places_a_moving_characters_shell_from_its_vertices() {
     let (mut gap, mut worst) = (0.0f32, [0.0f32; 3]);
     for frame in 0..scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         let uploaded = gpu.uploaded_last_frame();
         // Two character frames with the first frame (the window starts empty), one after.
         let frames = if frame == 0 { 2 } else { 1 };
-        let most = frames * vertices * 16 + 32 * cpu.substeps as u64;
+        let most = frames * vertices * 16 + 32 * cpu.substeps() as u64;
         assert!(uploaded <= most, "frame {frame} uploaded {uploaded} bytes");
-        let (want, _) = cpu.shells[0].gpu_snapshot();
-        let (got, grid) = gpu.read_shell(cpu.substeps - 1, 0).expect("read back");
+        let (want, _) = cpu.drivers.shells[0].gpu_snapshot();
+        let (got, grid) = gpu.read_shell(cpu.substeps() - 1, 0).expect("read back");
         assert_eq!(got.len(), want.len());
         for (w, g) in want.iter().zip(&got) {
             for k in 0..3 {
@@ -379,7 +379,7 @@ fn the_gpu_places_a_moving_characters_shell_from_its_vertices() {
         assert_lists_each_particle_once(
             &grid,
             &got,
-            on_gpu.shells[0].cell_for(on_gpu.largest_contact_radius()),
+            on_gpu.drivers.shells[0].cell_for(on_gpu.largest_contact_radius()),
         );
         gap = gap.max(common::largest_gap(&cpu, &on_gpu));
     }
@@ -417,7 +417,7 @@ fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
         common::simulation(&scene, dir.path()),
         common::simulation(&scene, dir.path()),
     );
-    whole.focus_enabled = false;
+    whole.drivers.focus.enabled = false;
     let mut fewest = usize::MAX;
     for frame in 0..scene.frames {
         focused.step_frame();
@@ -426,13 +426,13 @@ fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
             focused.state, whole.state,
             "frame {frame}: the focus changed the cloth"
         );
-        assert_eq!(whole.shells[0].focused(), None);
-        if let Some((active, all)) = focused.shells[0].focused() {
+        assert_eq!(whole.drivers.shells[0].focused(), None);
+        if let Some((active, all)) = focused.drivers.shells[0].focused() {
             assert!(10 * active <= 9 * all, "{active} of {all} in focus");
             fewest = fewest.min(active);
         }
     }
-    let all = whole.shells[0].particles();
+    let all = whole.drivers.shells[0].particles();
     eprintln!("focus: {fewest} of {all} shell particles at the least");
     assert!(
         fewest < all / 4,

@@ -17,12 +17,12 @@ fn context() -> Option<GpuContext> {
 /// Runs `frames` frames on both backends; returns (cpu, gpu) simulations.
 fn both(scene: &Scene, frames: u32) -> Option<(Simulation, Simulation)> {
     let ctx = context()?;
-    let mut cpu = Simulation::new(scene);
-    let mut gpu_sim = Simulation::new(scene);
+    let mut cpu = Simulation::new(scene).unwrap();
+    let mut gpu_sim = Simulation::new(scene).unwrap();
     let mut gpu = GpuSimulation::new(ctx, &gpu_sim).expect("GPU simulation");
     for _ in 0..frames {
         cpu.step_frame();
-        gpu.step_frame(&mut gpu_sim).expect("GPU frame");
+        gpu.step_frame(gpu_sim.frame_parts()).expect("GPU frame");
     }
     Some((cpu, gpu_sim))
 }
@@ -104,7 +104,7 @@ fn jacobi_pbd_and_the_sphere_match() {
             "{kind:?}: positions differ by {d} m after 20 frames"
         );
         assert!(
-            touching(&gpu, &gpu.colliders[0]) > 0,
+            touching(&gpu, &gpu.drivers.colliders[0]) > 0,
             "the cloth should touch the sphere by frame 20"
         );
     }
@@ -117,7 +117,7 @@ fn boxes_and_capsules_match() {
         r#"{ "frames": 20, "substeps": 10,
              "garments": [{ "resolution": [32, 32], "size": [1.2, 1.2], "position": [0, 0.8, 0] }],
              "colliders": [
-               { "kind": "box", "center": [-0.25, 0.4, 0], "size": [0.3, 0.4, 0.8] },
+               { "kind": "box", "centre": [-0.25, 0.4, 0], "size": [0.3, 0.4, 0.8] },
                { "kind": "capsule", "start": [0.2, 0.45, -0.4], "end": [0.3, 0.45, 0.4], "radius": 0.08 }
              ] }"#,
         "test",
@@ -129,7 +129,7 @@ fn boxes_and_capsules_match() {
     let d = max_distance(&cpu, &gpu);
     eprintln!("box and capsule: positions differ by {d:.2e} m after 20 frames");
     assert!(d <= 1e-5, "positions differ by {d} m after 20 frames");
-    for (c, name) in gpu.colliders.iter().zip(["box", "capsule"]) {
+    for (c, name) in gpu.drivers.colliders.iter().zip(["box", "capsule"]) {
         assert!(
             touching(&gpu, c) > 0,
             "the cloth should touch the {name} by frame 20"
@@ -143,7 +143,7 @@ fn the_swept_test_holds_cloth_on_a_thin_plate_on_the_gpu_too() {
     let scene = Scene::parse(
         r#"{ "frames": 40, "substeps": 1,
              "garments": [{ "resolution": [12, 12], "size": [0.6, 0.6], "position": [0, 1.6, 0] }],
-             "colliders": [{ "kind": "box", "center": [0, 0.5, 0], "size": [1.5, 0.01, 1.5] }] }"#,
+             "colliders": [{ "kind": "box", "centre": [0, 0.5, 0], "size": [1.5, 0.01, 1.5] }] }"#,
         "test",
     )
     .expect("scene");
@@ -172,7 +172,7 @@ fn a_voxelized_solid_with_six_colours_matches() {
         "garments": [{ "kind": "mesh", "mesh": "cushion.obj", "spacing": 0.03, "mass": 0.4,
                        "position": [0, 0.75, 0], "rotation": [0, 0, 20],
                        "stiffness": { "stretch": 2000, "shear": 1000 } }],
-        "colliders": [{ "kind": "box", "center": [0, 0.3, 0], "size": [0.5, 0.6, 0.5] }] }"#;
+        "colliders": [{ "kind": "box", "centre": [0, 0.3, 0], "size": [0.5, 0.6, 0.5] }] }"#;
     let garments = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("garments");
     let scene = Scene::parse_in(text, "test", &garments).expect("scene");
     let Some((cpu, gpu)) = both(&scene, 20) else {
@@ -183,7 +183,7 @@ fn a_voxelized_solid_with_six_colours_matches() {
     eprintln!("voxelized cushion: positions differ by {d:.2e} m after 20 frames");
     assert!(d <= 1e-5, "positions differ by {d} m after 20 frames");
     assert!(
-        touching(&gpu, &gpu.colliders[0]) > 0,
+        touching(&gpu, &gpu.drivers.colliders[0]) > 0,
         "the cushion should reach the box"
     );
 }
@@ -201,8 +201,8 @@ fn funnels_and_wedges_match() {
                { "resolution": [24, 24], "size": [0.8, 0.8], "position": [0.6, 1.2, 0] }
              ],
              "colliders": [
-               { "kind": "wedge", "center": [-0.6, 0.7, 0], "size": [0.3, 0.4, 1.0] },
-               { "kind": "funnel", "center": [0.6, 0.4, 0], "radius": 0.08, "top_radius": 0.35,
+               { "kind": "wedge", "centre": [-0.6, 0.7, 0], "size": [0.3, 0.4, 1.0] },
+               { "kind": "funnel", "centre": [0.6, 0.4, 0], "radius": 0.08, "top_radius": 0.35,
                  "height": 0.4, "thickness": 0.02 }
              ] }"#,
         "test",
@@ -214,7 +214,7 @@ fn funnels_and_wedges_match() {
     let d = max_distance(&cpu, &gpu);
     eprintln!("wedge and funnel: positions differ by {d:.2e} m after 24 frames");
     assert!(d <= 1e-5, "positions differ by {d} m after 24 frames");
-    for (c, name) in gpu.colliders.iter().zip(["wedge", "funnel"]) {
+    for (c, name) in gpu.drivers.colliders.iter().zip(["wedge", "funnel"]) {
         assert!(
             touching(&gpu, c) > 0,
             "the cloth should touch the {name} by frame 24"
@@ -238,9 +238,9 @@ fn moving_and_turned_colliders_match() {
                { "resolution": [20, 20], "size": [0.6, 0.6], "position": [0.7, 1.0, 0] }
              ],
              "colliders": [
-               { "kind": "sphere", "center": [-0.6, 0.9, -1.0], "radius": 0.12,
+               { "kind": "sphere", "centre": [-0.6, 0.9, -1.0], "radius": 0.12,
                  "keyframes": [{ "time": 0.05 }, { "time": 0.25, "translation": [0, 0, 2] }] },
-               { "kind": "box", "center": [0.7, 0.6, 0], "size": [0.3, 0.2, 0.5], "rotation": [0, 0, 20],
+               { "kind": "box", "centre": [0.7, 0.6, 0], "size": [0.3, 0.2, 0.5], "rotation": [0, 0, 20],
                  "keyframes": [{ "time": 0 }, { "time": 0.4, "rotation": [0, 90, 0] }] }
              ] }"#,
         "test",
@@ -249,8 +249,8 @@ fn moving_and_turned_colliders_match() {
     let Some(ctx) = context() else {
         return;
     };
-    let mut cpu = Simulation::new(&scene);
-    let mut on_gpu = Simulation::new(&scene);
+    let mut cpu = Simulation::new(&scene).unwrap();
+    let mut on_gpu = Simulation::new(&scene).unwrap();
     let mut gpu = GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     let centroid = |s: &Simulation, g: usize| {
         let range = s.model().garments[g].export.clone();
@@ -260,7 +260,7 @@ fn moving_and_turned_colliders_match() {
     let (mut before, mut centroid_gap) = (0.0f32, 0.0f32);
     for frame in 1..=scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         if frame <= 8 {
             before = before.max(max_distance(&cpu, &on_gpu));
         }
@@ -286,7 +286,7 @@ fn moving_and_turned_colliders_match() {
         "the cloth on the turning box differs by {box_cloth} m"
     );
     // Both backends put the colliders in the same final pose, and the cloth met both.
-    for (a, b) in cpu.colliders.iter().zip(&on_gpu.colliders) {
+    for (a, b) in cpu.drivers.colliders.iter().zip(&on_gpu.drivers.colliders) {
         assert_eq!(a.shape, b.shape);
     }
     assert!(
@@ -294,7 +294,7 @@ fn moving_and_turned_colliders_match() {
         "the sphere should have pushed the cloth along +Z"
     );
     assert!(
-        touching(&on_gpu, &on_gpu.colliders[1]) > 0,
+        touching(&on_gpu, &on_gpu.drivers.colliders[1]) > 0,
         "the cloth should rest on the box"
     );
 }
@@ -312,10 +312,10 @@ fn gpu_stages_are_timed_where_the_device_has_timestamps() {
     let scene = common::scene(
         r#"{ "frames": 2, "substeps": 4, "garments": [{ "resolution": [12, 12], "pins": [[0, 0]] }] }"#,
     );
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     let mut gpu = GpuSimulation::new(ctx, &sim).expect("GPU simulation");
     assert_eq!(gpu.time_stages(&sim, true), timestamps);
-    gpu.step_frame(&mut sim).expect("a frame");
+    gpu.step_frame(sim.frame_parts()).expect("a frame");
     let t = &sim.stage_times.seconds;
     let of = |name| t[drape::sim::schedule::timed(name)];
     eprintln!(
@@ -349,7 +349,7 @@ fn the_gpu_records_a_frame_as_one_submission_whatever_its_substeps() {
         "scene.json",
         r#"{ "name": "s", "frames": 5, "backend": "gpu", "output": { "gltf": "none", "obj": false },
              "garments": [{ "resolution": [12, 8], "pins": [[0, 0], [-1, 0]] }],
-             "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }] }"#,
+             "colliders": [{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.3 }] }"#,
     );
     let launches = |substeps: u32| {
         let out = format!("out{substeps}");

@@ -464,7 +464,7 @@ fn hanging_cloth_at_high_frame_rates_is_stable() {
         "<test>",
     )
     .unwrap();
-    let mut sim = drape::sim::Simulation::new(&scene);
+    let mut sim = drape::sim::Simulation::new(&scene).unwrap();
     sim.step_frame();
     let allowance = sim.rounding_energy();
     assert!(allowance > 0.0 && allowance < 1e-5, "{allowance}");

@@ -184,7 +184,7 @@ fn the_study_projective_dynamics_matches_drape_solver() {
     scene.garments[0].resolution = vec![10, 10];
     scene.substeps = Some(10);
     scene.solver.iterations = 10;
-    let mut sim = drape::sim::Simulation::new(&scene);
+    let mut sim = drape::sim::Simulation::new(&scene).unwrap();
     let mut sys = StudyScene::WashingLine.build(10, 1.0);
     let mut study = Vec::new();
     simulate(

@@ -1,6 +1,6 @@
 //! The library's module graph has no cycles: every `crate::X` path in a top-level module's
 //! files (comments left out) is an edge to module X, and no module reaches itself through
-//! them. A stage may use the stages below it (the scene, then characters and garments, then
+//! them. A stage may use the stages below it (the scene, then meshes, then characters and garments, then
 //! collisions and the simulation, then exports, the report and the bake), never one above.
 //! The binary's `cli` talks to the library as `drape::…` and is not part of the graph.
 
@@ -133,4 +133,20 @@ fn no_module_reaches_itself() {
             panic!("a cycle between modules: {}", steps.join(", "));
         }
     }
+}
+
+#[test]
+fn meshes_are_read_below_characters_and_garments() {
+    // The mesh readers, the animated mesh and vertex normals serve characters, garments and
+    // exports alike: they use only the scene's types and errors, and garments read their
+    // meshes through them, not through characters.
+    let graph = graph();
+    let mesh: Vec<&String> = graph["mesh"].keys().collect();
+    assert_eq!(mesh, ["error", "scene"], "{:?}", graph["mesh"]);
+    assert!(graph["garment"].contains_key("mesh"));
+    assert!(
+        !graph["garment"].contains_key("character"),
+        "{:?}",
+        graph["garment"]
+    );
 }

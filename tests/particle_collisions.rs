@@ -37,7 +37,7 @@ fn gap_between_cloths(sim: &Simulation) -> f32 {
 /// That gap after every frame.
 fn clearance(text: &str) -> Vec<f32> {
     let scene = common::scene(text);
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     (0..scene.frames)
         .map(|_| {
             sim.step_frame();
@@ -50,7 +50,7 @@ fn clearance(text: &str) -> Vec<f32> {
 fn a_cloth_dropped_on_a_cloth_stays_on_top() {
     let with = clearance(&two_cloths(true));
     let scene = common::scene(&two_cloths(true));
-    let sim = Simulation::new(&scene);
+    let sim = Simulation::new(&scene).unwrap();
     let radius = sim.particle_collisions.as_ref().expect("on").radius;
     // Every frame, every particle of the top cloth is above every particle of the bottom one,
     // and at rest the layers are about one particle diameter apart.
@@ -89,7 +89,7 @@ fn closest_non_neighbours(collisions: bool) -> (f32, f32) {
               "colliders": [{{ "kind": "plane" }}] }}"#
     );
     let scene = common::scene(&text);
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     for _ in 0..scene.frames {
         sim.step_frame();
     }
@@ -134,13 +134,13 @@ fn the_gpu_sorts_and_pushes_as_the_cpu_does() {
     };
     let text = two_cloths(true).replace("\"frames\": 60", "\"frames\": 30");
     let scene = common::scene(&text);
-    let mut cpu = Simulation::new(&scene);
-    let mut on_gpu = Simulation::new(&scene);
+    let mut cpu = Simulation::new(&scene).unwrap();
+    let mut on_gpu = Simulation::new(&scene).unwrap();
     let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
     let mut worst = 0.0f32;
     for _ in 0..scene.frames {
         cpu.step_frame();
-        gpu.step_frame(&mut on_gpu).expect("GPU frame");
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
         worst = worst.max(common::largest_gap(&cpu, &on_gpu));
     }
     let gap = gap_between_cloths(&on_gpu);
@@ -151,10 +151,10 @@ fn the_gpu_sorts_and_pushes_as_the_cpu_does() {
     assert!(gap > 0.0, "the top cloth fell through on the GPU");
     // A second run on the GPU gives the same numbers (the buckets are put in order).
     let ctx = common::gpu_context().unwrap();
-    let mut again = Simulation::new(&scene);
+    let mut again = Simulation::new(&scene).unwrap();
     let mut gpu2 = drape::gpu::GpuSimulation::new(ctx, &again).unwrap();
     for _ in 0..scene.frames {
-        gpu2.step_frame(&mut again).unwrap();
+        gpu2.step_frame(again.frame_parts()).unwrap();
     }
     assert_eq!(again.state.positions, on_gpu.state.positions);
 }

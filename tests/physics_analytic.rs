@@ -20,7 +20,7 @@ fn hanging_spring_mass_settles_at_the_analytic_equilibrium() {
                             "rotation": [0, 0, -90], "pins": [[0]], "tethers": false,
                             "stiffness": { "stretch": 100 } }] }"#,
     );
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     for _ in 0..scene.frames {
         sim.step_frame();
     }
@@ -43,7 +43,7 @@ fn hanging_spring_mass_settles_at_the_analytic_equilibrium() {
 fn hanging_cloth_energy_excess(iterations: u32) -> (f64, f64) {
     let mut scene = reference::load(reference::HANGING_CLOTH, "hanging_cloth.json");
     scene.solver.iterations = iterations;
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     let pins: Vec<usize> = (0..sim.model().particle_count())
         .filter(|&i| sim.model().inv_mass[i] == 0.0)
         .collect();
@@ -99,7 +99,7 @@ fn a_pendulum_loses_energy_at_every_step_size() {
                  "garments": [{{ "kind": "rope", "resolution": [2], "size": [1], "mass": 0.2,
                                 "pins": [[0]], "tethers": false, "stiffness": {{ "stretch": 10000 }} }}] }}"#
         ));
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(&scene).unwrap();
         let start = sim.energy().total();
         for frame in 1..=scene.frames {
             sim.step_frame();
@@ -115,19 +115,19 @@ fn a_pendulum_loses_energy_at_every_step_size() {
 #[test]
 fn sphere_drape_keeps_out_of_the_sphere() {
     let scene = reference::load(reference::SPHERE_DRAPE, "sphere_drape.json");
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     let mut deepest = 0.0f32;
     let mut touched = false;
     for _ in 0..scene.frames {
         sim.step_frame();
-        let p = collide::penetrations(&sim.colliders, &sim.state.positions)[0];
+        let p = collide::penetrations(&sim.drivers.colliders, &sim.state.positions)[0];
         deepest = deepest.max(p.deepest);
         // Particles resting on the sphere sit at the contact radius from its surface.
         touched |= sim
             .state
             .positions
             .iter()
-            .any(|q| sim.colliders[0].distance(q.truncate()).0 < 0.01);
+            .any(|q| sim.drivers.colliders[0].distance(q.truncate()).0 < 0.01);
     }
     assert!(touched, "the cloth never reached the sphere");
     assert!(
@@ -143,7 +143,7 @@ fn free_fall_matches_half_g_t_squared() {
     let scene = common::scene(
         r#"{ "frames": 30, "damping": 0, "garments": [{ "resolution": [8, 8], "position": [0, 5, 0] }] }"#,
     );
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     for _ in 0..scene.frames {
         sim.step_frame();
     }
@@ -183,7 +183,7 @@ fn a_rope_between_two_pins_hangs_as_a_catenary() {
                             "position": [0, 1, 0], "rotation": [0, 0, 0], "initial_stretch": 0.8,
                             "pins": [[0], [-1]], "stiffness": { "stretch": 100000 } }] }"#,
     );
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     for _ in 0..scene.frames {
         sim.step_frame();
     }

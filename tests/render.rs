@@ -5,8 +5,8 @@
 
 mod common;
 
-use drape::export::gltf::AnimatedMesh;
 use drape::gpu::GpuContext;
+use drape::mesh::AnimatedMesh;
 use drape::render::{RenderOptions, Renderer};
 use glam::Vec3;
 use std::path::Path;
@@ -25,7 +25,7 @@ fn gpu() -> Option<GpuContext> {
 const SCENE: &str = r#"{
   "name": "golden", "frames": 40, "substeps": 10, "backend": "cpu",
   "garments": [{ "name": "cloth", "resolution": [24, 24], "size": [1, 1], "position": [0, 0.9, 0] }],
-  "colliders": [{ "kind": "sphere", "center": [0, 0.5, 0], "radius": 0.3 }]
+  "colliders": [{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.3 }]
 }"#;
 
 /// Bakes SCENE with `extra` flags into `<temp>/out` and returns the temporary folder.

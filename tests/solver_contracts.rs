@@ -16,7 +16,7 @@ fn residuals(kind: SolverKind, iterations: u32, omega: f32) -> Vec<f64> {
     scene.solver.kind = kind;
     scene.solver.iterations = iterations;
     scene.solver.omega = omega;
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     sim.step_frame();
     let r = sim.residuals.expect("scene E records residuals");
     assert_eq!(r.len(), iterations as usize);
@@ -104,7 +104,7 @@ fn red_black_is_bit_identical_on_one_and_two_threads() {
     let scene = reference::load(reference::SPHERE_DRAPE, "sphere_drape.json");
     let run = |threads| {
         thread_pool(Some(threads)).unwrap().install(|| {
-            let mut sim = Simulation::new(&scene);
+            let mut sim = Simulation::new(&scene).unwrap();
             for _ in 0..20 {
                 sim.step_frame();
             }

@@ -213,7 +213,7 @@ fn a_solid_cushion_lands_on_the_floor_and_keeps_its_shape() {
                        "position": [0, 0.5, 0], "stiffness": { "stretch": 2000, "shear": 1000 } }] }"#;
     let garments = Path::new(env!("CARGO_MANIFEST_DIR")).join("garments");
     let scene = Scene::parse_in(text, "<test scene>", &garments).unwrap();
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).unwrap();
     let rest_height = 2.0 * RADII.y;
     for _ in 0..scene.frames {
         sim.step_frame();

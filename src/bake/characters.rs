@@ -6,8 +6,8 @@ use crate::character::{cache::input_hash, sequence_files, Character, ShellCache}
 use crate::collide::skin::Skin;
 use crate::collide::ShellCollider;
 use crate::error::{Error, Result};
-use crate::export::gltf::AnimatedMesh;
 use crate::export::sequence::{Welding, CHARACTER_COLOUR};
+use crate::mesh::AnimatedMesh;
 use crate::report::CharacterReport;
 use crate::scene::Scene;
 use glam::Vec3;

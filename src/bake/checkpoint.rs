@@ -70,6 +70,9 @@ pub struct Measured {
     pub penetrations_per_frame: Vec<FramePenetrations>,
     pub worst_mesh_penetrations: Vec<MeshPenetration>,
     pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
+    /// Absent in checkpoints of drape before the crossing count.
+    #[serde(default)]
+    pub crossings_per_frame: Vec<crate::report::FrameCrossings>,
     pub worst_frame: Option<FrameMetrics>,
     pub last_frame: Option<FrameMetrics>,
     /// The pre-roll's report so far (absent in checkpoints of bakes without one).

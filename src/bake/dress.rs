@@ -23,7 +23,7 @@ pub fn clean_start(sim: &mut Simulation, meshes: &BakeMeshes) -> CleanStart {
         return report;
     }
     for (name, vertices, triangles) in meshes.characters_on(0) {
-        let Some(shell) = sim.shells.iter().find(|s| s.name == name) else {
+        let Some(shell) = sim.drivers.shells.iter().find(|s| s.name == name) else {
             continue;
         };
         let radius = shell.radius;

@@ -9,7 +9,7 @@ use crate::backend::Backend;
 use crate::collide;
 use crate::error::Result;
 use crate::export::sequence::BakeMeshes;
-use crate::report::{Failure, FramePenetrations, MeshPenetration, Report, Timing};
+use crate::report::{Failure, FrameCrossings, FramePenetrations, MeshPenetration, Report, Timing};
 use crate::sim::schedule::{self, StageTimes};
 use crate::sim::{metrics, Simulation};
 use std::time::Instant;
@@ -41,8 +41,10 @@ pub fn run(
     if progress.baked == 0 {
         progress.initial_energy = sim.energy();
         progress.hash = crate::character::cache::FNV_OFFSET;
-        progress.worst =
-            vec![collide::Penetration::default(); sim.colliders.len() + sim.shells.len()];
+        progress.worst = vec![
+            collide::Penetration::default();
+            sim.drivers.colliders.len() + sim.drivers.shells.len()
+        ];
     }
     progress.measured.clone().apply(report);
     report.frames_baked = progress.baked;
@@ -102,7 +104,12 @@ pub fn run(
         let measuring = Instant::now();
         // The free particles, gathered once for every penetration count.
         let free = sim.free_positions();
-        let unstable = measure(sim, &free, frame, &mut progress, report);
+        let (vertices, triangles) = meshes.garments_as_one(&sim.export_positions());
+        let crossings = collide::crossings::count(&vertices, &triangles);
+        report
+            .crossings_per_frame
+            .push(FrameCrossings { frame, crossings });
+        let unstable = measure(sim, &free, (frame, crossings), &mut progress, report);
         measure_meshes(&free, (meshes, &probes), baked as usize - 1, frame, report);
         if let Some(r) = &sim.residuals {
             progress.residuals.push(r.clone());
@@ -183,7 +190,7 @@ fn sum_up(
     if let Some(t) = targets {
         report.budget = Some(BudgetReport::of(t, &progress.budget_frames));
     }
-    report.torn_springs = sim.torn_springs;
+    report.torn_springs = sim.torn_springs();
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&progress.worst);
     if sim.residuals.is_some() {
@@ -207,6 +214,7 @@ impl Measured {
             penetrations_per_frame: report.penetrations_per_frame.clone(),
             worst_mesh_penetrations: report.worst_mesh_penetrations.clone(),
             mesh_penetrations_per_frame: report.mesh_penetrations_per_frame.clone(),
+            crossings_per_frame: report.crossings_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
             preroll: report.preroll.clone(),
@@ -218,6 +226,7 @@ impl Measured {
         report.penetrations_per_frame = self.penetrations_per_frame;
         report.worst_mesh_penetrations = self.worst_mesh_penetrations;
         report.mesh_penetrations_per_frame = self.mesh_penetrations_per_frame;
+        report.crossings_per_frame = self.crossings_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
         if self.preroll.is_some() {
@@ -272,7 +281,7 @@ fn step_within(
     let settings = sim.solver_settings();
     progress.budget_frames.push(FrameBudget {
         frame,
-        substeps: sim.substeps,
+        substeps: sim.substeps(),
         iterations: settings.iterations,
         contact_passes: settings.contact_passes,
         attempts,
@@ -353,8 +362,8 @@ fn unstable_now(
 
 /// The `free` particles inside each collider, then inside each character's shell.
 fn solid_penetrations(sim: &Simulation, free: &[glam::Vec4]) -> Vec<collide::Penetration> {
-    let mut penetrations = collide::penetrations(&sim.colliders, free);
-    penetrations.extend(sim.shells.iter().map(|s| s.penetration(free)));
+    let mut penetrations = collide::penetrations(&sim.drivers.colliders, free);
+    penetrations.extend(sim.drivers.shells.iter().map(|s| s.penetration(free)));
     penetrations
 }
 
@@ -429,12 +438,13 @@ fn measure_meshes(
     report.mesh_penetrations_per_frame.push(this);
 }
 
-/// Measures frame `frame`: strain, penetrations of the `free` particles (into `report` and the
-/// worst so far in `worst`) and stability; returns why the simulation is unstable, if it is.
+/// Measures frame `frame` (whose garments cross themselves `crossings` times): strain,
+/// penetrations of the `free` particles (into `report` and the worst so far in `worst`) and
+/// stability; returns why the simulation is unstable, if it is.
 fn measure(
     sim: &Simulation,
     free: &[glam::Vec4],
-    frame: u32,
+    (frame, crossings): (u32, usize),
     progress: &mut Progress,
     report: &mut Report,
 ) -> Option<String> {
@@ -450,7 +460,7 @@ fn measure(
         w.deepest = w.deepest.max(p.deepest);
     }
     preroll_strain(report, frame, error.max_strain);
-    let metrics = frame_metrics(frame, &error, &penetrations);
+    let metrics = frame_metrics(frame, &error, &penetrations, crossings);
     if report
         .worst_frame
         .as_ref()

@@ -262,8 +262,14 @@ fn run(
     );
     let mut report = report::empty_report(scene, options, &sim, threads);
     report.until = options.until;
-    let source = resumed_source(scene, options, resume_from, &sim.shells, &mut warnings)?;
-    if source.is_none() && !sim.shells.is_empty() {
+    let source = resumed_source(
+        scene,
+        options,
+        resume_from,
+        &sim.drivers.shells,
+        &mut warnings,
+    )?;
+    if source.is_none() && !sim.drivers.shells.is_empty() {
         report.clean_start = Some(dress::clean_start(&mut sim, &meshes));
     }
     let targets = budget::Targets::of(scene);
@@ -287,7 +293,7 @@ fn run(
     if !backend.is_gpu() {
         // Only the GPU places shells from their meshes; the CPU reads the shells' own frames
         // (P: 15 MB of the mannequin's vertices no longer held).
-        for s in &mut sim.shells {
+        for s in &mut sim.drivers.shells {
             s.skin = None;
         }
     }
@@ -305,7 +311,7 @@ fn run(
             scene,
             if backend.is_gpu() { "gpu" } else { "cpu" },
             meshes.garment_particles(),
-            &sim.shells,
+            &sim.drivers.shells,
         )?),
     };
     let mut progress = checkpoint::Progress::default();

@@ -4,7 +4,7 @@
 
 use super::characters::LoadedCharacter;
 use crate::error::{Error, Result};
-use crate::export::gltf::AnimatedMesh;
+use crate::mesh::AnimatedMesh;
 use crate::report::CharacterReport;
 use crate::scene::Scene;
 use crate::sim::attach::Skin;
@@ -31,7 +31,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
     let mut binds = Vec::new();
     for mut c in characters {
         c.shell.swept = scene.swept_collisions;
-        sim.shells.push(c.shell);
+        sim.drivers.shells.push(c.shell);
         reports.push(c.report);
         if c.mesh.is_some() {
             binds.push(c.bind);
@@ -39,7 +39,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
         character_meshes.extend(c.mesh);
     }
     let mut warnings = Vec::new();
-    if !sim.attachments.unbound().is_empty() {
+    if !sim.drivers.attachments.unbound().is_empty() {
         let skins = character_meshes
             .iter()
             .zip(binds)
@@ -53,6 +53,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
             })
             .collect();
         warnings = sim
+            .drivers
             .attachments
             .bind_skins(skins)
             .map_err(|reason| Error::InvalidField {

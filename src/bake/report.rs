@@ -30,8 +30,8 @@ pub(super) fn empty_report(
         solver: scene.solver.clone(),
         integrator: scene.integrator,
         fps: scene.fps,
-        substeps: sim.substeps,
-        step_seconds: sim.step,
+        substeps: sim.substeps(),
+        step_seconds: sim.drivers.clock.step,
         particles: model.particle_count(),
         springs: model.springs.len(),
         garments: model
@@ -66,6 +66,7 @@ pub(super) fn empty_report(
         gpu_dispatches_per_frame: None,
         gpu_submissions_per_frame: None,
         mesh_penetrations_per_frame: Vec::new(),
+        crossings_per_frame: Vec::new(),
         torn_springs: 0,
         preroll: (scene.lead_in > 0).then(|| PrerollReport {
             frames: scene.lead_in,
@@ -96,8 +97,10 @@ pub(super) fn frame_metrics(
     frame: u32,
     e: &metrics::ConstraintError,
     p: &[collide::Penetration],
+    crossings: usize,
 ) -> FrameMetrics {
     FrameMetrics {
+        crossings,
         frame,
         total_squared_error: e.total_squared_error,
         mean_strain: e.mean_strain,

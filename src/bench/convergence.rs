@@ -116,7 +116,8 @@ pub fn hanging_state(frames: u32) -> crate::sim::State {
     let mut sim = Simulation::new(&reference::load(
         reference::HANGING_CLOTH,
         "hanging_cloth.json",
-    ));
+    ))
+    .expect("a reference scene builds");
     for _ in 0..frames {
         sim.step_frame();
     }
@@ -138,7 +139,7 @@ pub fn measure(
     let make = |k: u32, record: bool| {
         let mut scene = study_scene(letter, method, k);
         scene.output.residuals = record;
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(&scene).expect("a reference scene builds");
         if let Some(s) = start {
             sim.state = s.clone();
         }
@@ -214,7 +215,7 @@ pub fn omega_sweep_point(omega: f32, iterations: u32, target: f64) -> (Option<us
         iterations,
     );
     scene.output.residuals = true;
-    let mut sim = Simulation::new(&scene);
+    let mut sim = Simulation::new(&scene).expect("a reference scene builds");
     sim.step_frame();
     let errors = sim.residuals.take().unwrap_or_default();
     (

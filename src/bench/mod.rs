@@ -52,10 +52,10 @@ pub fn time_iterations(
     let pool = thread_pool(Some(threads))?;
     pool.install(|| {
         // One untimed frame warms caches and the pool; the timed one restarts from rest.
-        let mut warm = Simulation::new(&scene);
+        let mut warm = Simulation::new(&scene)?;
         warm.sharing = Sharing::whole_team();
         warm.step_frame();
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(&scene)?;
         sim.sharing = Sharing::whole_team();
         let start = Instant::now();
         sim.substep();
@@ -102,7 +102,7 @@ pub fn time_frames(
     scene.output.residuals = false;
     let pool = thread_pool(Some(threads))?;
     pool.install(|| {
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(&scene)?;
         // Timed on the threads asked for, busy machine or not.
         sim.sharing = Sharing::whole_team();
         let mut ms = Vec::with_capacity(frames as usize);
@@ -118,7 +118,7 @@ pub fn time_frames(
         }
         let timing = crate::report::Timing::of(&ms);
         let error = sim.constraint_error();
-        let pen = collide::penetrations(&sim.colliders, &sim.free_positions());
+        let pen = collide::penetrations(&sim.drivers.colliders, &sim.free_positions());
         Ok(FrameTiming {
             scene: scene.name.clone(),
             solver: kind.name(),
@@ -180,7 +180,7 @@ pub fn time_size(
     let mut backend = "cpu".to_string();
     // Runs `count` frames of `scene` after one warm-up frame; returns seconds per frame.
     let mut run = |scene: &Scene, count: u32| -> Result<f64> {
-        let mut sim = Simulation::new(scene);
+        let mut sim = Simulation::new(scene)?;
         sim.sharing = Sharing::whole_team();
         let mut b = match gpu {
             Some(open) => Backend::gpu(open()?, &sim)?,

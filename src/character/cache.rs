@@ -54,7 +54,7 @@ pub fn input_hash(
     }
     // The sampler's own parameters too: a new sampler must not reuse an old cache.
     let sampler = super::shell::SAMPLER;
-    let importer = super::import::IMPORTER;
+    let importer = crate::mesh::import::IMPORTER;
     let settings =
         format!("{options:?}|{radius}|{fps}|{frames}|v{VERSION}|{sampler}|import{importer}");
     Ok(fnv(h, settings.as_bytes()))

@@ -11,12 +11,12 @@
 //! - [`shell`]: the collision particle shell.
 
 pub mod cache;
-pub mod import;
 pub mod mannequin;
 pub mod shell;
 
+use crate::mesh::import;
+pub use crate::mesh::import::Asset;
 pub use cache::ShellCache;
-pub use import::Asset;
 pub use shell::Shell;
 
 use crate::error::{Error, Result};
@@ -194,6 +194,47 @@ const MESH_EXTENSIONS: [&str; 9] = [
     "obj", "ply", "stl", "fbx", "dae", "gltf", "glb", "off", "3ds",
 ];
 
+/// The files of a frame sequence as read: each file's vertices placed by the character's
+/// options, its colliding triangles, the first file's visible triangles (when `meshes` leaves
+/// some out) and the files' warnings, each once.
+struct Sequence {
+    stored: Vec<Vec<Vec3>>,
+    triangles: Vec<Vec<[u32; 3]>>,
+    visible: Option<Vec<[u32; 3]>>,
+    warnings: Vec<String>,
+}
+
+impl Sequence {
+    fn read(files: &[std::path::PathBuf], options: &CharacterOptions) -> Result<Sequence> {
+        let transform = options.transform();
+        let mut read = Sequence {
+            stored: Vec::new(),
+            triangles: Vec::new(),
+            visible: None,
+            warnings: Vec::new(),
+        };
+        for file in files {
+            let asset = Asset::open(file)?;
+            let pose = asset.pose(None, 0.0);
+            (read.stored).push(
+                pose.iter()
+                    .map(|&v| transform.transform_point3(v))
+                    .collect(),
+            );
+            (read.triangles).push(asset.colliding_triangles(options.meshes.as_ref(), file)?);
+            if options.meshes.is_some() && read.visible.is_none() {
+                read.visible = Some(asset.triangles());
+            }
+            for w in asset.warnings {
+                if !read.warnings.contains(&w) {
+                    read.warnings.push(w);
+                }
+            }
+        }
+        Ok(read)
+    }
+}
+
 impl Character {
     /// Loads `source` (one file, or a folder or `printf`-style `%0Nd` pattern of per-frame files)
     /// as `frames` frames at `fps`.
@@ -210,30 +251,12 @@ impl Character {
         }
         // A sequence: file k is frame k at `sequence_fps` (default: the scene's), resampled to
         // `fps` by linear interpolation; past the last file the last frame holds.
-        let transform = options.transform();
-        let mut stored = Vec::new();
-        let mut triangles = Vec::new();
-        let mut visible = None;
-        let mut warnings = Vec::new();
-        for file in &files {
-            let asset = Asset::open(file)?;
-            stored.push(
-                asset
-                    .pose(None, 0.0)
-                    .iter()
-                    .map(|&v| transform.transform_point3(v))
-                    .collect::<Vec<Vec3>>(),
-            );
-            triangles.push(asset.colliding_triangles(options.meshes.as_ref(), file)?);
-            if options.meshes.is_some() && visible.is_none() {
-                visible = Some(asset.triangles());
-            }
-            for w in asset.warnings {
-                if !warnings.contains(&w) {
-                    warnings.push(w);
-                }
-            }
-        }
+        let Sequence {
+            stored,
+            triangles,
+            visible,
+            mut warnings,
+        } = Sequence::read(&files, options)?;
         let source_fps = options.sequence_fps.unwrap_or(fps);
         let same = triangles.windows(2).all(|w| w[0] == w[1]);
         let lead = options.lead_in;

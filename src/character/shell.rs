@@ -30,9 +30,6 @@ pub struct Shell {
     pub barycentric: Vec<[f32; 2]>,
 }
 
-/// Vertices closer than this [m] share a normal (see [`Shell::normals`]).
-const WELD: f32 = 1e-5;
-
 /// Candidates drawn per particle the surface can hold.
 const OVERSAMPLING: f32 = 40.0;
 
@@ -191,6 +188,8 @@ impl Shell {
     /// candidates look at the same cells: a fine shell's table is far larger than the caches,
     /// and random order made the cost per candidate grow with the shell (6 × the particles took
     /// 17 × the time).
+    // Long: one dart-throwing loop over a hashed table it owns (draw, order the batch, test
+    // the neighbouring cells, accept), then the Morton ordering of what it accepted.
     pub fn sample(vertices: &[Vec3], triangles: &[[u32; 3]], radius: f32) -> Shell {
         let areas: Vec<f32> = triangles
             .iter()
@@ -334,7 +333,7 @@ impl Shell {
     /// own triangle normals jump by tens of degrees between neighbouring particles, and cloth
     /// pushed out along them is spread apart over every edge.
     pub fn normals(&self, vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-        let smooth = vertex_normals(vertices, triangles);
+        let smooth = crate::mesh::smooth_normals(vertices, triangles);
         self.triangle
             .iter()
             .zip(&self.barycentric)
@@ -349,85 +348,8 @@ impl Shell {
     }
 }
 
-/// Vertices welded for smooth normals: vertices within the same 10 µm cell share a slot (a
-/// seam's two copies of a vertex rarely agree to the last bit when a generator computed them
-/// from different angles).
-#[derive(Clone, Debug, Default)]
-pub struct Weld {
-    /// Each vertex's slot.
-    pub slot: Vec<u32>,
-    /// Number of slots.
-    pub slots: usize,
-}
-
-impl Weld {
-    /// The welding of `vertices`.
-    pub fn of(vertices: &[Vec3]) -> Weld {
-        let mut weld: HashMap<[i64; 3], u32> = HashMap::new();
-        let slot: Vec<u32> = vertices
-            .iter()
-            .map(|v| {
-                let n = weld.len() as u32;
-                let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
-                *weld.entry(cell).or_insert(n)
-            })
-            .collect();
-        Weld {
-            slots: weld.len(),
-            slot,
-        }
-    }
-
-    /// Each slot's triangles (compressed rows: `faces[start[s]..start[s + 1]]`), a triangle
-    /// once per corner it has in the slot, in triangle order: the order [`welded_normals`]
-    /// adds them in (the GPU sums each slot's normals from these).
-    pub fn slot_faces(&self, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
-        let mut start = vec![0u32; self.slots + 1];
-        for t in triangles {
-            for &i in t {
-                start[self.slot[i as usize] as usize + 1] += 1;
-            }
-        }
-        for s in 0..self.slots {
-            start[s + 1] += start[s];
-        }
-        let mut next = start.clone();
-        let mut faces = vec![0u32; 3 * triangles.len()];
-        for (k, t) in triangles.iter().enumerate() {
-            for &i in t {
-                let at = &mut next[self.slot[i as usize] as usize];
-                faces[*at as usize] = k as u32;
-                *at += 1;
-            }
-        }
-        (start, faces)
-    }
-}
-
-/// Each vertex's smooth unit normal (zero where it has none): the area-weighted sum of its
-/// triangles' normals, vertices welded ([`Weld`]).
-pub fn vertex_normals(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    welded_normals(vertices, triangles, &Weld::of(vertices))
-}
-
-/// [`vertex_normals`] with a given welding (a character's first frame's, for all its frames:
-/// `shaders/skin.wgsl` sums the same on the GPU).
-pub fn welded_normals(vertices: &[Vec3], triangles: &[[u32; 3]], weld: &Weld) -> Vec<Vec3> {
-    let mut sum = vec![Vec3::ZERO; weld.slots];
-    for t in triangles {
-        let [a, b, c] = corners(vertices, *t);
-        let n = (b - a).cross(c - a);
-        for &i in t {
-            sum[weld.slot[i as usize] as usize] += n;
-        }
-    }
-    (weld.slot.iter())
-        .map(|&s| sum[s as usize].normalize_or_zero())
-        .collect()
-}
-
 /// The normal at barycentric `(u, v)` of triangle `t` from its corners' smooth normals
-/// ([`vertex_normals`]); the facet's normal where they cancel, +Y for a degenerate triangle.
+/// ([`smooth_normals`]); the facet's normal where they cancel, +Y for a degenerate triangle.
 /// `shaders/skin.wgsl` computes the same.
 pub fn particle_normal(vertices: &[Vec3], smooth: &[Vec3], t: [u32; 3], [u, v]: [f32; 2]) -> Vec3 {
     let [a, b, c] = t.map(|i| smooth[i as usize]);

@@ -117,6 +117,24 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
             last.total_squared_error
         );
     }
+    if let Some(worst) = r
+        .crossings_per_frame
+        .iter()
+        .rev()
+        .max_by_key(|c| c.crossings)
+    {
+        let frames = r
+            .crossings_per_frame
+            .iter()
+            .filter(|c| c.crossings > 0)
+            .count();
+        println!(
+            "cloth crossings: {frames} of {} frames pass through themselves, the most {} triangle pairs (frame {})",
+            r.crossings_per_frame.len(),
+            worst.crossings,
+            worst.frame
+        );
+    }
 }
 
 /// The command that resumes a bake of `scene` into `out`.
@@ -139,9 +157,8 @@ fn resume_command(scene: &Option<PathBuf>, out: &std::path::Path) -> String {
     )
 }
 
-pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
-    let (mut scene, scene_file) = resolve::scene(&args.scene)?;
-    let scene_arg = args.scene.scene.clone();
+/// The command line's overrides of `scene`'s backend, checkpoints and outputs.
+fn apply_overrides(scene: &mut drape::scene::Scene, args: &BakeArgs) {
     if let Some(b) = args.backend {
         scene.backend = match b {
             BackendArg::Cpu => BackendKind::Cpu,
@@ -168,6 +185,12 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
             GltfArg::None => GltfOutput::None,
         };
     }
+}
+
+pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
+    let (mut scene, scene_file) = resolve::scene(&args.scene)?;
+    let scene_arg = args.scene.scene.clone();
+    apply_overrides(&mut scene, &args);
     let out = args
         .out
         .unwrap_or_else(|| PathBuf::from("out").join(&scene.name));

@@ -32,17 +32,34 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
     let s = reference::load(reference::SPHERE_DRAPE, "sphere_drape.json");
     let mut csv = String::from("scene,solver,threads,iterations_or_frames,us_per_iteration,ms_per_frame_median,total_squared_error,mean_strain,max_strain,inside,deepest_m,stable,mean_shear_deg\n");
 
+    iteration_rows(&e, &threads, args.iterations, &mut csv)?;
+    frame_rows(&[&h, &s], &threads, args.frames.unwrap_or(120), &mut csv)?;
+    if let Some(path) = &args.csv {
+        std::fs::write(path, csv).map_err(|e| drape::Error::io(path, "cannot write", e))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(0)
+}
+
+/// Scene E's rows of `drape bench solvers`: µs per iteration for every solver and thread count,
+/// printed and added to `csv`.
+fn iteration_rows(
+    e: &drape::scene::Scene,
+    threads: &[usize],
+    iterations: u32,
+    csv: &mut String,
+) -> anyhow::Result<()> {
     println!(
         "scene E ({} iterations from the 5x-stretched start):",
-        args.iterations
+        iterations
     );
     println!(
         "  {:<8} {:>7} {:>14} {:>16}",
         "solver", "threads", "µs/iteration", "squared error"
     );
-    for &t in &threads {
+    for &t in threads {
         for kind in SOLVERS {
-            let r = time_iterations(&e, kind, t, args.iterations)?;
+            let r = time_iterations(e, kind, t, iterations)?;
             println!(
                 "  {:<8} {:>7} {:>14.1} {:>16.4e}",
                 r.solver, t, r.us_per_iteration, r.residual
@@ -54,8 +71,18 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             );
         }
     }
-    let frames = args.frames.unwrap_or(120);
-    for scene in [&h, &s] {
+    Ok(())
+}
+
+/// The frame rows of `drape bench solvers` for `scenes`: ms per frame and accuracy for every
+/// solver and thread count, printed and added to `csv`.
+fn frame_rows(
+    scenes: &[&drape::scene::Scene],
+    threads: &[usize],
+    frames: u32,
+    csv: &mut String,
+) -> anyhow::Result<()> {
+    for scene in scenes {
         println!(
             "scene {} ({} frames, {} substeps x {} iterations):",
             scene.name,
@@ -75,7 +102,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             "deepest",
             "stable"
         );
-        for &t in &threads {
+        for &t in threads {
             for kind in SOLVERS {
                 let r = time_frames(scene, kind, t, frames)?;
                 println!(
@@ -107,11 +134,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
             }
         }
     }
-    if let Some(path) = &args.csv {
-        std::fs::write(path, csv).map_err(|e| drape::Error::io(path, "cannot write", e))?;
-        println!("wrote {}", path.display());
-    }
-    Ok(0)
+    Ok(())
 }
 
 /// `drape bench sizes`: µs per iteration and ms per frame for each backend and parallel solver at

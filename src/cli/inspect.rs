@@ -46,38 +46,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         s.contact_passes,
         if s.contact_passes == 1 { "" } else { "es" }
     );
-    for g in &garments {
-        if let Some(m) = &g.source {
-            let v = &m.voxels;
-            println!(
-                "  garment '{}' voxelizes {} ({} triangles, {}) at {} m: {} surface + {} interior cells",
-                g.name,
-                m.file,
-                m.triangles.len(),
-                if m.closed { "closed" } else { "open" },
-                v.spacing,
-                v.surface_cells,
-                v.interior_cells
-            );
-        }
-        println!(
-            "  garment '{}': {} particles ({} × {} × {}), {} pinned, springs: {} stretch, {} shear, {} bend; {} colours = ({} x + {} y + {} z) mod {}",
-            g.name,
-            g.particle_count(),
-            g.dims[0],
-            g.dims[1],
-            g.dims[2],
-            g.pins.len(),
-            g.spring_count(SpringFamily::Stretch),
-            g.spring_count(SpringFamily::Shear),
-            g.spring_count(SpringFamily::Bend),
-            g.colour_count(),
-            g.colouring.coefficients[0],
-            g.colouring.coefficients[1],
-            g.colouring.coefficients[2],
-            g.colouring.modulus,
-        );
-    }
+    print_garments(&garments);
     for line in level_of_detail(&scene, &garments) {
         println!("  {line}");
     }
@@ -118,6 +87,43 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         scene.frames
     );
     Ok(0)
+}
+
+/// Each garment's lattice: what a mesh garment voxelizes, its particles, pins, springs and
+/// colouring.
+fn print_garments(garments: &[drape::garment::Garment]) {
+    for g in garments {
+        if let Some(m) = &g.source {
+            let v = &m.voxels;
+            println!(
+                "  garment '{}' voxelizes {} ({} triangles, {}) at {} m: {} surface + {} interior cells",
+                g.name,
+                m.file,
+                m.triangles.len(),
+                if m.closed { "closed" } else { "open" },
+                v.spacing,
+                v.surface_cells,
+                v.interior_cells
+            );
+        }
+        println!(
+            "  garment '{}': {} particles ({} × {} × {}), {} pinned, springs: {} stretch, {} shear, {} bend; {} colours = ({} x + {} y + {} z) mod {}",
+            g.name,
+            g.particle_count(),
+            g.dims[0],
+            g.dims[1],
+            g.dims[2],
+            g.pins.len(),
+            g.spring_count(SpringFamily::Stretch),
+            g.spring_count(SpringFamily::Shear),
+            g.spring_count(SpringFamily::Bend),
+            g.colour_count(),
+            g.colouring.coefficients[0],
+            g.colouring.coefficients[1],
+            g.colouring.coefficients[2],
+            g.colouring.modulus,
+        );
+    }
 }
 
 /// Per garment modelled `on` a character: its particles' clearance to the body in the bind

@@ -107,10 +107,39 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
     let plan_scenes = std::path::absolute(&args.out)
         .map_err(|e| Error::io(&args.out, "cannot resolve", e))?
         .join("scenes");
+    let variants = variants(
+        &original,
+        &wedges,
+        &stem,
+        &file,
+        (&base, &plan_scenes),
+        args.chunk,
+    )?;
+    write_plan(&args.out, &stem, &variants, args.cpus)?;
+    println!(
+        "planned {count} bake{s} into {plan}: run them with `cd {plan} && bash jobs.txt` (in order, one at a time), `bash {plan}/parallel.sh` (GNU parallel here), `bash {plan}/slurm.sh` (Slurm) or {plan}/job.yaml (OpenJD); `drape plan --status {plan}` says how each went",
+        count = variants.len(),
+        s = if variants.len() == 1 { "" } else { "s" },
+        plan = args.out.display(),
+    );
+    Ok(0)
+}
+
+/// The plan's variants: `original` (the scene `file`, named `stem`) with each combination of
+/// the `wedges`' values, its paths rebased from `base` to the plan's `scenes` folder, each
+/// checked as a scene and cut into chunks of `chunk` frames.
+fn variants(
+    original: &Value,
+    wedges: &[Wedge],
+    stem: &str,
+    file: &str,
+    (base, plan_scenes): (&Path, &Path),
+    chunk: Option<u32>,
+) -> Result<Vec<Variant>, Error> {
     let mut variants = Vec::new();
-    for (index, combination) in combinations(&wedges).into_iter().enumerate() {
-        let mut scene = rebased_paths(original.clone(), &base, &plan_scenes);
-        let mut name = stem.clone();
+    for (index, combination) in combinations(wedges).into_iter().enumerate() {
+        let mut scene = rebased_paths(original.clone(), base, plan_scenes);
+        let mut name = stem.to_string();
         for (wedge, value) in wedges.iter().zip(&combination) {
             set(&mut scene, &wedge.field, value.clone()).map_err(|reason| {
                 Error::InvalidArgument {
@@ -131,7 +160,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
         }
         scene["name"] = Value::String(name.clone());
         let text = serde_json::to_string_pretty(&scene).expect("JSON serialises");
-        let parsed = Scene::parse_in(&text, &format!("{file} ({name})"), &base).map_err(|e| {
+        let parsed = Scene::parse_in(&text, &format!("{file} ({name})"), base).map_err(|e| {
             Error::InvalidArgument {
                 flag: "--wedge".into(),
                 reason: format!("variant {name}: {e}"),
@@ -144,17 +173,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<i32> {
             name,
             text,
             characters,
-            chunks: chunks(&parsed, args.chunk),
+            chunks: chunks(&parsed, chunk),
         });
     }
-    write_plan(&args.out, &stem, &variants, args.cpus)?;
-    println!(
-        "planned {count} bake{s} into {plan}: run them with `cd {plan} && bash jobs.txt` (in order, one at a time), `bash {plan}/parallel.sh` (GNU parallel here), `bash {plan}/slurm.sh` (Slurm) or {plan}/job.yaml (OpenJD); `drape plan --status {plan}` says how each went",
-        count = variants.len(),
-        s = if variants.len() == 1 { "" } else { "s" },
-        plan = args.out.display(),
-    );
-    Ok(0)
+    Ok(variants)
 }
 
 /// The shot frames the chunks of `chunk` frames of `scene` stop after (the last one its last

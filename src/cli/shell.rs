@@ -149,7 +149,7 @@ pub fn load(
         (Some(name), false) => {
             let names = probe.clips.iter().map(|c| c.0.as_str());
             let duration =
-                drape::character::import::find_clip(names, name).map_or(0.0, |i| probe.clips[i].1);
+                drape::mesh::import::find_clip(names, name).map_or(0.0, |i| probe.clips[i].1);
             ((duration / options.speed as f64) * fps as f64).ceil() as usize + 1
         }
         _ => {

@@ -6,6 +6,7 @@
 //! motion smaller than μ × the push is removed (static friction), larger motion is shortened by
 //! μ × the push (kinetic friction), as position-based friction does (Macklin et al. 2014, §6.1).
 
+pub mod crossings;
 pub mod mesh;
 pub mod particles;
 pub mod shell;
@@ -51,19 +52,19 @@ pub enum Shape {
     /// Solid half-space below the plane n·x = offset (n unit length).
     Plane { normal: Vec3, offset: f32 },
     /// Solid ball.
-    Sphere { center: Vec3, radius: f32 },
+    Sphere { centre: Vec3, radius: f32 },
     /// Solid box, turned by `rotation` about its centre (identity: axis-aligned).
     Box {
-        center: Vec3,
+        centre: Vec3,
         half: Vec3,
         rotation: Quat,
     },
     /// Solid capsule around the segment `start`–`end`.
     Capsule { start: Vec3, end: Vec3, radius: f32 },
     /// Upright funnel wall: points within `half_thickness` of the cone frustum from the circle
-    /// of `radius` at `center` to the circle of `top_radius` at `height` above it.
+    /// of `radius` at `centre` to the circle of `top_radius` at `height` above it.
     Funnel {
-        center: Vec3,
+        centre: Vec3,
         radius: f32,
         top_radius: f32,
         height: f32,
@@ -72,7 +73,7 @@ pub enum Shape {
     /// Solid triangular prism, blade down: top face `half.x` × 2 wide at `half.y` above the
     /// centre, blade at `half.y` below, `half.z` × 2 long; turned by `rotation`.
     Wedge {
-        center: Vec3,
+        centre: Vec3,
         half: Vec3,
         rotation: Quat,
     },
@@ -95,10 +96,10 @@ impl Shape {
     pub fn centre(&self) -> Vec3 {
         match *self {
             Shape::Plane { normal, offset } => normal * offset,
-            Shape::Sphere { center, .. }
-            | Shape::Box { center, .. }
-            | Shape::Funnel { center, .. }
-            | Shape::Wedge { center, .. } => center,
+            Shape::Sphere { centre, .. }
+            | Shape::Box { centre, .. }
+            | Shape::Funnel { centre, .. }
+            | Shape::Wedge { centre, .. } => centre,
             Shape::Capsule { start, end, .. } => (start + end) * 0.5,
         }
     }
@@ -115,16 +116,16 @@ impl Shape {
                     offset: n.dot(point(normal * offset)),
                 }
             }
-            Shape::Sphere { center, radius } => Shape::Sphere {
-                center: point(center),
+            Shape::Sphere { centre, radius } => Shape::Sphere {
+                centre: point(centre),
                 radius,
             },
             Shape::Box {
-                center,
+                centre,
                 half,
                 rotation: r,
             } => Shape::Box {
-                center: point(center),
+                centre: point(centre),
                 half,
                 rotation: rotation * r,
             },
@@ -135,19 +136,19 @@ impl Shape {
             },
             // A funnel stays upright: it follows the translation (its keyframed rotation is
             // rejected by validation).
-            Shape::Funnel { center, .. } => {
+            Shape::Funnel { centre, .. } => {
                 let mut funnel = *self;
-                if let Shape::Funnel { center: c, .. } = &mut funnel {
-                    *c = point(center);
+                if let Shape::Funnel { centre: c, .. } = &mut funnel {
+                    *c = point(centre);
                 }
                 funnel
             }
             Shape::Wedge {
-                center,
+                centre,
                 half,
                 rotation: r,
             } => Shape::Wedge {
-                center: point(center),
+                centre: point(centre),
                 half,
                 rotation: rotation * r,
             },
@@ -194,36 +195,36 @@ impl Collider {
                     offset: normal.dot(v(point.unwrap_or([0.0; 3]))),
                 }
             }
-            ColliderShape::Sphere { center, radius } => Shape::Sphere {
-                center: v(center),
+            ColliderShape::Sphere { centre, radius } => Shape::Sphere {
+                centre: v(centre),
                 radius,
             },
             ColliderShape::Box {
-                center,
+                centre,
                 size,
                 rotation,
             } => Shape::Box {
-                center: v(center),
+                centre: v(centre),
                 half: v(size) * 0.5,
                 rotation: turn(rotation),
             },
             ColliderShape::Wedge {
-                center,
+                centre,
                 size,
                 rotation,
             } => Shape::Wedge {
-                center: v(center),
+                centre: v(centre),
                 half: v(size) * 0.5,
                 rotation: turn(rotation),
             },
             ColliderShape::Funnel {
-                center,
+                centre,
                 radius,
                 top_radius,
                 height,
                 thickness,
             } => Shape::Funnel {
-                center: v(center),
+                centre: v(centre),
                 radius,
                 top_radius,
                 height,
@@ -264,13 +265,13 @@ impl Collider {
     pub fn distance(&self, p: Vec3) -> (f32, Vec3) {
         match self.shape {
             Shape::Plane { normal, offset } => (normal.dot(p) - offset, normal),
-            Shape::Sphere { center, radius } => ball_distance(p - center, radius),
+            Shape::Sphere { centre, radius } => ball_distance(p - centre, radius),
             Shape::Box {
-                center,
+                centre,
                 half,
                 rotation,
             } => {
-                let (d, n) = box_distance(rotation.inverse() * (p - center), half);
+                let (d, n) = box_distance(rotation.inverse() * (p - centre), half);
                 (d, rotation * n)
             }
             Shape::Capsule { start, end, radius } => {
@@ -279,18 +280,18 @@ impl Collider {
                 ball_distance(p - (start + axis * t), radius)
             }
             Shape::Funnel {
-                center,
+                centre,
                 radius,
                 top_radius,
                 height,
                 half_thickness,
-            } => funnel_distance(p - center, radius, top_radius, height, half_thickness),
+            } => funnel_distance(p - centre, radius, top_radius, height, half_thickness),
             Shape::Wedge {
-                center,
+                centre,
                 half,
                 rotation,
             } => {
-                let (d, n) = wedge_distance(rotation.inverse() * (p - center), half);
+                let (d, n) = wedge_distance(rotation.inverse() * (p - centre), half);
                 (d, rotation * n)
             }
         }

@@ -5,7 +5,7 @@
 //! vertices, not its shell particles at every substep (the GPU sums their smooth normals
 //! itself, from the welding of the first frame that the CPU uses for every frame too).
 
-use crate::character::shell::{welded_normals, Weld};
+use crate::mesh::{welded_normals, Weld};
 use glam::Vec3;
 
 /// What the GPU needs to place a shell's particles from the mesh's vertices.

@@ -17,46 +17,14 @@
 //! (positions and normals) plus 4·F² per animated mesh for the weights: split long sequences
 //! into several bakes.
 
-use super::obj::vertex_normals;
 use super::sink::{Frame, FrameSink, MeshInfo, Written};
 use crate::error::{Error, Result};
+use crate::mesh::{vertex_normals, AnimatedMesh};
 use glam::Vec3;
 use serde_json::{json, Value};
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
-
-/// An animated mesh: fixed topology, one position array per frame.
-#[derive(Clone, Debug)]
-pub struct AnimatedMesh {
-    pub name: String,
-    /// Triangles; empty for a rope, which is written as a line strip.
-    pub triangles: Vec<[u32; 3]>,
-    /// Texture coordinates per vertex, if any.
-    pub uvs: Option<Vec<[f32; 2]>>,
-    /// Base colour, linear RGBA.
-    pub colour: [f32; 4],
-    /// Positions of every vertex, per frame.
-    pub frames: Vec<Vec<Vec3>>,
-    /// When the faces change during the sequence (tearing): (first frame index, triangles)
-    /// in order; `triangles` holds the last. Empty: `triangles` throughout. glTF keeps one
-    /// topology, the last; previews and OBJ frames follow the changes.
-    pub topology: Vec<(usize, Vec<[u32; 3]>)>,
-    /// A character's triangles that collide, when a mesh selection left some out (the mesh
-    /// penetration metric measures these); None: all of `triangles`.
-    pub solid: Option<Vec<[u32; 3]>>,
-}
-
-impl AnimatedMesh {
-    /// The triangles of frame `k`.
-    pub fn triangles_at(&self, k: usize) -> &[[u32; 3]] {
-        self.topology
-            .iter()
-            .rev()
-            .find(|(first, _)| *first <= k)
-            .map_or(&self.triangles, |(_, t)| t)
-    }
-}
 
 /// glTF container.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -66,7 +66,7 @@ pub fn frame_text(
         s.push('\n');
         return s;
     }
-    for n in vertex_normals(triangles, positions) {
+    for n in crate::mesh::vertex_normals(triangles, positions) {
         let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
     }
     for t in triangles {
@@ -166,20 +166,4 @@ impl FrameSink for ObjFrames {
         }
         Ok(out)
     }
-}
-
-/// Area-weighted vertex normals (unit length; +Y for a vertex with no area).
-pub fn vertex_normals(triangles: &[[u32; 3]], positions: &[Vec3]) -> Vec<Vec3> {
-    let mut normals = vec![Vec3::ZERO; positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        let n = (b - a).cross(c - a);
-        for &i in t {
-            normals[i as usize] += n;
-        }
-    }
-    normals
-        .iter()
-        .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
-        .collect()
 }

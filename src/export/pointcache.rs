@@ -294,7 +294,7 @@ fn usd_mesh(
         samples(
             out,
             "        normal3f[] primvars:normals (\n            interpolation = \"vertex\"\n        )\n        normal3f[] primvars:normals.timeSamples = {\n",
-            &|f| super::obj::vertex_normals(&triangles, f),
+            &|f| crate::mesh::vertex_normals(&triangles, f),
         )?;
     }
     samples(out, "        point3f[] points.timeSamples = {\n", &|f| {

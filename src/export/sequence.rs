@@ -2,8 +2,8 @@
 //! meshes ([`BakeMeshes`]), each frame made into a [`Frame`] for the sinks. Also the welding of
 //! imported meshes and the collider shapes' meshes.
 
-use super::gltf::AnimatedMesh;
 use super::sink::{Frame, MeshInfo, Role};
+use crate::mesh::AnimatedMesh;
 use crate::scene::ColliderSpec;
 use crate::sim::attach::Track;
 use crate::sim::model::GarmentRange;
@@ -41,32 +41,32 @@ pub fn collider_meshes(colliders: &[ColliderSpec]) -> Vec<ColliderMesh> {
         .enumerate()
         .filter_map(|(i, c)| {
             use crate::collide::Shape;
-            let turned = |(p, t): Mesh, center: Vec3, rotation: glam::Quat| -> Mesh {
-                (p.iter().map(|q| center + rotation * *q).collect(), t)
+            let turned = |(p, t): Mesh, centre: Vec3, rotation: glam::Quat| -> Mesh {
+                (p.iter().map(|q| centre + rotation * *q).collect(), t)
             };
             // Built at the origin, then turned and placed like the collider.
             let shape = crate::collide::Collider::from_spec(c).shape;
             let (positions, triangles) = match shape {
                 Shape::Plane { .. } => return None,
-                Shape::Sphere { center, radius } => rounded(center, center, radius),
+                Shape::Sphere { centre, radius } => rounded(centre, centre, radius),
                 Shape::Capsule { start, end, radius } => rounded(start, end, radius),
                 Shape::Box {
-                    center,
+                    centre,
                     half,
                     rotation,
-                } => turned(cuboid(Vec3::ZERO, half), center, rotation),
+                } => turned(cuboid(Vec3::ZERO, half), centre, rotation),
                 Shape::Wedge {
-                    center,
+                    centre,
                     half,
                     rotation,
-                } => turned(prism(half), center, rotation),
+                } => turned(prism(half), centre, rotation),
                 Shape::Funnel {
-                    center,
+                    centre,
                     radius,
                     top_radius,
                     height,
                     ..
-                } => frustum(center, radius, top_radius, height),
+                } => frustum(centre, radius, top_radius, height),
             };
             let track = (!c.keyframes.is_empty()).then(|| Track::new(&c.keyframes, shape.centre()));
             let mesh = AnimatedMesh {
@@ -331,6 +331,22 @@ impl BakeMeshes {
     }
 
     /// Takes the garments' faces after tearing; returns the garments whose faces changed.
+    /// Every garment's exported surface as one mesh ([`Self::garment_surfaces`] one after
+    /// another, with the faces over them as torn so far).
+    pub fn garments_as_one(&self, particles: &[Vec3]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+        for (surface, faces) in self
+            .garment_surfaces(particles)
+            .into_iter()
+            .zip(self.garment_faces())
+        {
+            let first = vertices.len() as u32;
+            triangles.extend(faces.iter().map(|t| t.map(|i| i + first)));
+            vertices.extend(surface);
+        }
+        (vertices, triangles)
+    }
+
     pub fn tear(&mut self, garments: &[GarmentRange]) -> Vec<usize> {
         let mut changed = Vec::new();
         for (i, (old, new)) in self.garments.iter_mut().zip(garments).enumerate() {

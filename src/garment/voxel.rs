@@ -41,7 +41,7 @@ impl SourceMesh {
     /// of them without one), in its bind pose when `bind` (a garment modelled on a character:
     /// skinned meshes as stored), else in its default node pose.
     pub fn open_in(path: &Path, mesh_name: Option<&str>, bind: bool) -> Result<SourceMesh> {
-        use crate::character::import::{matches, Asset};
+        use crate::mesh::import::{matches, Asset};
         let mut asset = Asset::open(path)?;
         if let Some(name) = mesh_name {
             if !asset.meshes.iter().any(|m| matches(m, name)) {
@@ -362,18 +362,7 @@ pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<Placed
         file,
         format!("garments[{i}].mesh"),
     )?;
-    let moved = glam::Affine3A::from_translation(Vec3::from(g.position))
-        * glam::Affine3A::from_mat3(super::rotation_of(g.rotation));
-    let transform = match g.on.as_ref().and_then(|on| character_named(scene, on)) {
-        // Modelled on a character: placed as the character is, then moved by its own fields.
-        Some(c) => moved * glam::Affine3A::from_mat4(c.options().transform()),
-        None => {
-            let (lo, hi) = source.bounds();
-            moved
-                * glam::Affine3A::from_scale(Vec3::splat(g.scale))
-                * glam::Affine3A::from_translation(-0.5 * (lo + hi))
-        }
-    };
+    let transform = placement(scene, g, &source);
     let placed: Vec<Vec3> = source
         .vertices
         .iter()
@@ -448,6 +437,27 @@ pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<Placed
         }
     }
     Ok(mesh)
+}
+
+/// Where garment `g`'s mesh `source` goes in the scene: modelled on a character, placed as the
+/// character is, then moved by its own `position` and `rotation`; else centred, scaled by its
+/// `scale` and moved.
+fn placement(
+    scene: &crate::scene::Scene,
+    g: &crate::scene::GarmentSpec,
+    source: &SourceMesh,
+) -> glam::Affine3A {
+    let moved = glam::Affine3A::from_translation(Vec3::from(g.position))
+        * glam::Affine3A::from_mat3(super::rotation_of(g.rotation));
+    match g.on.as_ref().and_then(|on| character_named(scene, on)) {
+        Some(c) => moved * glam::Affine3A::from_mat4(c.options().transform()),
+        None => {
+            let (lo, hi) = source.bounds();
+            moved
+                * glam::Affine3A::from_scale(Vec3::splat(g.scale))
+                * glam::Affine3A::from_translation(-0.5 * (lo + hi))
+        }
+    }
 }
 
 /// The character of `scene` called `name`.

@@ -169,8 +169,13 @@ impl StateGroup {
             .collect();
         // Colliders that move have one pose per substep, refreshed every frame.
         let moving = sim.moving_colliders();
-        let colliders: Vec<GpuCollider> = (0..if moving { sim.substeps } else { 1 })
-            .flat_map(|_| sim.colliders.iter().map(super::solver::gpu_collider))
+        let colliders: Vec<GpuCollider> = (0..if moving { sim.substeps() } else { 1 })
+            .flat_map(|_| {
+                sim.drivers
+                    .colliders
+                    .iter()
+                    .map(super::solver::gpu_collider)
+            })
             .collect();
         let colliders = buffer(
             "colliders",
@@ -257,7 +262,7 @@ impl ParamSlots {
         let model = sim.model();
         let n = model.particle_count() as u32;
         let (h, keep, gravity_step) = sim.integration_constants();
-        let collider_count = sim.colliders.len() as u32;
+        let collider_count = sim.drivers.colliders.len() as u32;
         let base = GpuParams {
             gravity_step: gravity_step.to_array(),
             particles: n,
@@ -273,10 +278,10 @@ impl ParamSlots {
             keep,
             omega: sim.solver_settings().omega,
         };
-        let attached = sim.attachments.list.len() as u32;
+        let attached = sim.drivers.attachments.list.len() as u32;
         let attach = PARAMS_COLOUR + model.colour_ranges.len() as u32;
-        let finish = attach + sim.substeps;
-        let mut bytes = vec![0u8; PARAMS_STRIDE as usize * (finish + sim.substeps) as usize];
+        let finish = attach + sim.substeps();
+        let mut bytes = vec![0u8; PARAMS_STRIDE as usize * (finish + sim.substeps()) as usize];
         let mut put = |slot: u32, p: GpuParams| {
             let at = (slot as u64 * PARAMS_STRIDE) as usize;
             bytes[at..at + std::mem::size_of::<GpuParams>()]
@@ -294,7 +299,7 @@ impl ParamSlots {
                 },
             );
         }
-        for k in 0..sim.substeps {
+        for k in 0..sim.substeps() {
             put(
                 attach + k,
                 GpuParams {
@@ -316,7 +321,7 @@ impl ParamSlots {
                         0
                     },
                     // With force fields each substep predicts after its fields' `forces` stage.
-                    predict_next: (k + 1 < sim.substeps && sim.forces().is_none()) as u32,
+                    predict_next: (k + 1 < sim.substeps() && sim.forces().is_none()) as u32,
                     ..base
                 },
             );
@@ -352,7 +357,7 @@ impl ResidualGroup {
         } else {
             settings.inner_iterations
         };
-        let sweeps_per_frame = sim.substeps * settings.iterations * inner;
+        let sweeps_per_frame = sim.substeps() * settings.iterations * inner;
         let structural = sim.model().structural_springs as u32;
         let partial_sums = vec![0f32; structural.div_ceil(reduce_group).max(1) as usize];
         let partial = init(device, "partial", bytemuck::cast_slice(&partial_sums), RW);
@@ -423,7 +428,7 @@ fn shell_layout(sim: &Simulation) -> (Vec<GpuShellInfo>, u32, u32) {
     let reach = sim.largest_contact_radius();
     let mut shells = Vec::new();
     let (mut shell_stride, mut grid_stride) = (0u32, 0u32);
-    for s in &sim.shells {
+    for s in &sim.drivers.shells {
         // A shell re-sampled per frame takes its most particles' room in every substep.
         let count = s.most_particles() as u32;
         let table = crate::collide::ShellCollider::buckets_for(s.most_particles()) as u32;
@@ -454,9 +459,9 @@ impl ContactGroup {
         let table = collisions.map_or(1, |c| c.table());
         let (shells, shell_stride, grid_stride) = shell_layout(sim);
         // Collision passes test shells against lists `finish` keeps (none yet: all empty).
-        let listing = sim.solver_settings().contact_passes > 1 && !sim.shells.is_empty();
+        let listing = sim.solver_settings().contact_passes > 1 && !sim.drivers.shells.is_empty();
         let nearby_entries = if listing {
-            sim.shells.len() * n * crate::collide::shell::NEARBY
+            sim.drivers.shells.len() * n * crate::collide::shell::NEARBY
         } else {
             0
         };
@@ -480,25 +485,30 @@ impl ContactGroup {
             &vec![
                 0u8;
                 super::layout::SHELL_PARTICLE_BYTES as usize
-                    * (shell_stride * sim.substeps).max(1) as usize
+                    * (shell_stride * sim.substeps()).max(1) as usize
             ],
             READ_REFRESHED,
         );
         let shell_grid = buffer(
             "shell_grid",
-            &vec![0u8; 4 * (grid_stride * sim.substeps).max(1) as usize],
+            &vec![0u8; 4 * (grid_stride * sim.substeps()).max(1) as usize],
             READ_REFRESHED,
         );
-        let attached = sim.attachments.list.len() as u32;
+        let attached = sim.drivers.attachments.list.len() as u32;
         let attach_target = buffer(
             "attach_target",
-            &vec![0u8; 16 * (attached * sim.substeps).max(1) as usize],
+            &vec![0u8; 16 * (attached * sim.substeps()).max(1) as usize],
             READ_REFRESHED,
         );
         let cells = collisions.map_or_else(|| vec![[0i32; 4]], |c| c.cells_and_garments());
         let per_particle = if collisions.is_some() { n.max(1) } else { 1 };
-        let attached_particles: Vec<u32> =
-            sim.attachments.list.iter().map(|a| a.particle).collect();
+        let attached_particles: Vec<u32> = sim
+            .drivers
+            .attachments
+            .list
+            .iter()
+            .map(|a| a.particle)
+            .collect();
         // The simulation's own lists when it has them (a resumed bake's checkpoint), else empty.
         let nearby: Vec<u32> =
             if sim.nearby_lists().len() * crate::collide::shell::NEARBY == nearby_entries {

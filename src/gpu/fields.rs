@@ -22,6 +22,10 @@ pub struct GpuFieldCounts {
 pub struct FieldGroup {
     pub faces: u32,
     winds: usize,
+    /// The fields (their steady winds are uploaded per substep).
+    forces: crate::sim::forces::Forces,
+    /// Substeps per second.
+    per_second: f32,
     time: wgpu::Buffer,
     /// Each particle's work this frame [J] (cleared per frame, read back with the positions).
     pub work: wgpu::Buffer,
@@ -48,7 +52,7 @@ impl FieldGroup {
             wgpu::BufferUsages::UNIFORM,
         );
         let refreshed = READ | wgpu::BufferUsages::COPY_DST;
-        let time_bytes = vec![0u8; 16 * sim.substeps as usize * winds.max(1)];
+        let time_bytes = vec![0u8; 16 * sim.substeps() as usize * winds.max(1)];
         let time = init(device, "field_time", &time_bytes, refreshed);
         let work = init(device, "field_work", &vec![0u8; 4 * n.max(1)], RW);
         let buffers = [
@@ -121,6 +125,8 @@ impl FieldGroup {
         Some(FieldGroup {
             faces: counts.faces,
             winds,
+            forces: forces.clone(),
+            per_second: sim.substeps() as f32 * sim.fps(),
             time,
             work,
             group,
@@ -129,16 +135,13 @@ impl FieldGroup {
 
     /// Uploads each substep's steady wind and start time for the frame whose substeps start at
     /// substep `first` of the bake; returns the bytes written.
-    pub fn upload(&self, queue: &wgpu::Queue, sim: &Simulation, first: u64) -> u64 {
-        let Some(forces) = sim.forces() else {
-            return 0;
-        };
-        let per_second = sim.substeps as f32 * sim.fps();
-        let mut entries = Vec::with_capacity(sim.substeps as usize * self.winds.max(1));
-        for k in 0..sim.substeps as u64 {
+    /// `substeps`: the frame's.
+    pub fn upload(&self, queue: &wgpu::Queue, substeps: u32, first: u64) -> u64 {
+        let mut entries = Vec::with_capacity(substeps as usize * self.winds.max(1));
+        for k in 0..substeps as u64 {
             // As `Simulation::substep` computes it on the CPU.
-            let t = (first + k) as f32 / per_second;
-            let steady = forces.steady_at(t);
+            let t = (first + k) as f32 / self.per_second;
+            let steady = self.forces.steady_at(t);
             if steady.is_empty() {
                 entries.push(glam::Vec4::new(0.0, 0.0, 0.0, t));
             }

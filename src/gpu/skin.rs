@@ -10,6 +10,7 @@
 
 use super::buffers::ContactGroup;
 use crate::collide::shell::frame_weight;
+use crate::collide::ShellCollider;
 use crate::sim::Simulation;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
@@ -185,7 +186,7 @@ pub struct SkinMotion {
 /// Shells the GPU places itself: moving ones bound to a mesh (the rest are uploaded from the
 /// CPU: static ones once, re-sampled ones every substep).
 pub fn placed_on_gpu(sim: &Simulation) -> Vec<bool> {
-    (sim.shells.iter())
+    (sim.drivers.shells.iter())
         .map(|s| {
             let bound = s.skin.as_ref().map(|k| k.particle_triangle.len());
             !s.is_static() && bound == Some(s.most_particles())
@@ -222,7 +223,7 @@ impl SkinMotion {
         let (mut corners, mut barycentric) = (Vec::new(), Vec::new());
         let mut mesh = Mesh::default();
         for (i, on) in placed_on_gpu(sim).into_iter().enumerate() {
-            let (Some(skin), true) = (&sim.shells[i].skin, on) else {
+            let (Some(skin), true) = (&sim.drivers.shells[i].skin, on) else {
                 continue;
             };
             let shell = contact.shells[i];
@@ -258,7 +259,7 @@ impl SkinMotion {
         if resident.is_empty() {
             return None;
         }
-        let substeps = sim.substeps;
+        let substeps = sim.substeps();
         let r = resident.len() as u32;
         let frame = GpuSkinFrame {
             shell_stride: contact.shell_stride,
@@ -346,7 +347,7 @@ impl SkinMotion {
     /// Uploads what the frame whose substeps start at substep `first` (counted from the
     /// bake's start) needs: the character frames its substeps reach that the window lacks, and
     /// where each substep starts and ends. Returns the bytes written.
-    pub fn upload(&mut self, queue: &wgpu::Queue, sim: &Simulation, first: u64) -> u64 {
+    pub fn upload(&mut self, queue: &wgpu::Queue, shells: &[ShellCollider], first: u64) -> u64 {
         let per_frame = self.substeps as f32;
         let mut times = Vec::with_capacity((self.substeps as usize) * self.resident.len());
         let mut uploaded = 0u64;
@@ -354,7 +355,7 @@ impl SkinMotion {
             let from = (first + s) as f32 / per_frame;
             let to = (first + s + 1) as f32 / per_frame;
             for (r, (shell, info)) in self.resident.iter().enumerate() {
-                let skin = sim.shells[*shell]
+                let skin = shells[*shell]
                     .skin
                     .as_ref()
                     .expect("resident shells have skins");
@@ -385,17 +386,17 @@ impl SkinMotion {
             }
         }
         // Every frame a substep reads must still be in the window after the others came in.
-        debug_assert!(self.window_holds_the_frame(sim, first));
+        debug_assert!(self.window_holds_the_frame(shells, first));
         queue.write_buffer(&self.times, 0, bytemuck::cast_slice(&times));
         uploaded + 32 * times.len() as u64
     }
 
     /// True when the window holds every frame the substeps from `first` read.
-    fn window_holds_the_frame(&self, sim: &Simulation, first: u64) -> bool {
+    fn window_holds_the_frame(&self, shells: &[ShellCollider], first: u64) -> bool {
         (0..=self.substeps as u64).all(|s| {
             let f = (first + s) as f32 / self.substeps as f32;
             self.resident.iter().enumerate().all(|(r, (shell, _))| {
-                let last = sim.shells[*shell].frames.len() - 1;
+                let last = shells[*shell].frames.len() - 1;
                 let (a, b, _) = frames_at(f, last);
                 self.held[r][a % SLOTS] == Some(a) && self.held[r][b % SLOTS] == Some(b)
             })

@@ -15,7 +15,7 @@ use crate::collide::Shape;
 use crate::error::{Error, Result};
 use crate::scene::SolverKind;
 use crate::sim::schedule::Stage;
-use crate::sim::Simulation;
+use crate::sim::{FrameParts, Simulation};
 use glam::{Vec3, Vec4};
 
 /// Threads per workgroup of the per-particle and per-spring kernels (shaders use 64).
@@ -50,6 +50,12 @@ pub struct GpuSimulation {
     springs: u32,
     structural: u32,
     colour_ranges: Vec<(u32, u32)>,
+    /// What every frame runs until the next reload: the solver's settings, the substep's
+    /// stages, substeps per frame, and whether particles move under time integration.
+    settings: crate::scene::SolverSettings,
+    schedule: Vec<Stage>,
+    substeps: u32,
+    integrating: bool,
 }
 
 /// Refuses what the GPU cannot run: sequential Gauss-Seidel, buffers past the adapter's
@@ -74,13 +80,13 @@ fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
         });
     }
     // Characters' shells take one share per substep (particles and grids).
-    let shell_particles: usize = sim.shells.iter().map(|s| s.most_particles()).sum();
-    let shell_bytes = shell_particles as u64 * SHELL_PARTICLE_BYTES * sim.substeps as u64;
+    let shell_particles: usize = sim.drivers.shells.iter().map(|s| s.most_particles()).sum();
+    let shell_bytes = shell_particles as u64 * SHELL_PARTICLE_BYTES * sim.substeps() as u64;
     if shell_bytes > limit as u64 {
         return Err(Error::Gpu {
             reason: format!(
                 "characters' shells ({shell_particles} particles) at {} substeps per frame need {} MiB buffers; {} allows {} MiB",
-                sim.substeps,
+                sim.substeps(),
                 shell_bytes >> 20,
                 ctx.adapter.name,
                 limit >> 20
@@ -88,11 +94,11 @@ fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
         });
     }
     let dispatch_limit = ctx.device.limits().max_compute_workgroups_per_dimension as usize;
-    if !sim.shells.is_empty() && sim.substeps as usize > dispatch_limit {
+    if !sim.drivers.shells.is_empty() && sim.substeps() as usize > dispatch_limit {
         return Err(Error::Gpu {
             reason: format!(
                 "characters' shells are placed for every substep in one dispatch: {} substeps per frame are more than the {dispatch_limit} workgroups {} runs per dispatch",
-                sim.substeps, ctx.adapter.name
+                sim.substeps(), ctx.adapter.name
             ),
         });
     }
@@ -114,18 +120,18 @@ pub(super) fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
     let mut rotation = glam::Quat::IDENTITY;
     let (kind, radius, offset, vector, second) = match c.shape {
         Shape::Plane { normal, offset } => (kind::PLANE, 0.0, offset, normal, Vec3::ZERO),
-        Shape::Sphere { center, radius } => (kind::SPHERE, radius, 0.0, center, Vec3::ZERO),
+        Shape::Sphere { centre, radius } => (kind::SPHERE, radius, 0.0, centre, Vec3::ZERO),
         Shape::Box {
-            center,
+            centre,
             half,
             rotation: r,
         } => {
             rotation = r;
-            (kind::BOX, 0.0, 0.0, center, half)
+            (kind::BOX, 0.0, 0.0, centre, half)
         }
         Shape::Capsule { start, end, radius } => (kind::CAPSULE, radius, 0.0, start, end),
         Shape::Funnel {
-            center,
+            centre,
             radius,
             top_radius,
             height,
@@ -134,16 +140,16 @@ pub(super) fn gpu_collider(c: &crate::collide::Collider) -> GpuCollider {
             kind::FUNNEL,
             radius,
             top_radius,
-            center,
+            centre,
             Vec3::new(height, half_thickness, 0.0),
         ),
         Shape::Wedge {
-            center,
+            centre,
             half,
             rotation: r,
         } => {
             rotation = r;
-            (kind::WEDGE, 0.0, 0.0, center, half)
+            (kind::WEDGE, 0.0, 0.0, centre, half)
         }
     };
     GpuCollider {
@@ -170,8 +176,8 @@ impl GpuSimulation {
         // serve every reload.
         let kernels = Kernels::new(
             &ctx.device,
-            !sim.shells.is_empty(),
-            !sim.colliders.is_empty(),
+            !sim.drivers.shells.is_empty(),
+            !sim.drivers.colliders.is_empty(),
         );
         GpuSimulation::with_kernels(ctx, kernels, sim)
     }
@@ -222,6 +228,10 @@ impl GpuSimulation {
                 .iter()
                 .map(|r| (r.start as u32, r.end as u32))
                 .collect(),
+            settings: sim.solver_settings().clone(),
+            schedule: sim.schedule(),
+            substeps: sim.substeps(),
+            integrating: sim.integrating(),
             ctx,
             kernels,
             state,
@@ -266,24 +276,39 @@ impl GpuSimulation {
         &self.ctx.adapter
     }
 
-    /// Runs one frame on the GPU and copies positions, velocities and (when `sim` records them)
-    /// per-sweep residuals back into `sim`.
-    pub fn step_frame(&mut self, sim: &mut Simulation) -> Result<()> {
-        // Where the attached particles go this frame, substep by substep (also advances the
-        // simulation's clock).
+    /// Runs one frame on the GPU, driven by `frame`'s drivers (whose clock it advances by a
+    /// frame), and copies positions, velocities and (when it records them) per-sweep residuals
+    /// back into its state, the force fields' work and the stage times into its reports.
+    pub fn step_frame(&mut self, frame: FrameParts) -> Result<()> {
         self.dispatches.set(0);
         self.submissions = 0;
-        let driven = sim.drive_frame(!self.static_shells_uploaded, &self.placed_on_gpu);
+        let FrameParts {
+            drivers,
+            state,
+            contact_reach,
+            residuals,
+            force_work,
+            stage_times,
+        } = frame;
+        // Where the attached particles go this frame, substep by substep.
+        let static_shells = !self.static_shells_uploaded;
+        let driven = drivers.drive_frame(
+            state,
+            contact_reach,
+            static_shells,
+            &self.placed_on_gpu,
+            stage_times,
+        );
         self.uploaded_last_frame = self.upload(&driven);
         // The frame's first substep, counted from the bake's start.
-        let first = sim.elapsed_substeps() - sim.substeps as u64;
+        let first = drivers.clock.elapsed() - self.substeps as u64;
         if let Some(skin) = &mut self.skin {
-            self.uploaded_last_frame += skin.upload(&self.ctx.queue, sim, first);
+            self.uploaded_last_frame += skin.upload(&self.ctx.queue, &drivers.shells, first);
         }
         if let Some(fields) = &self.fields {
-            self.uploaded_last_frame += fields.upload(&self.ctx.queue, sim, first);
+            self.uploaded_last_frame += fields.upload(&self.ctx.queue, self.substeps, first);
         }
-        let encoder = self.record_frame(sim);
+        let encoder = self.record_frame(residuals.is_some());
         let n = self.particles as u64 * 16;
         let mut encoder = encoder;
         encoder.copy_buffer_to_buffer(&self.state.x, 0, &self.residual.readback, 0, n);
@@ -328,21 +353,23 @@ impl GpuSimulation {
             })?;
             let floats: &[Vec4] = bytemuck::cast_slice(&view[..2 * n as usize]);
             let (x, v) = floats.split_at(self.particles as usize);
-            sim.state.positions.copy_from_slice(x);
-            sim.state.velocities.copy_from_slice(v);
-            if let Some(r) = &mut sim.residuals {
+            state.positions.copy_from_slice(x);
+            state.velocities.copy_from_slice(v);
+            if let Some(r) = residuals {
                 let values: &[f32] = bytemuck::cast_slice(&view[2 * n as usize..work_at as usize]);
                 r.clear();
                 r.extend(values.iter().map(|&e| e as f64));
             }
             if self.fields.is_some() {
                 let work: &[f32] = bytemuck::cast_slice(&view[work_at as usize..]);
-                sim.add_force_work(work.iter().map(|&w| w as f64).sum());
+                let work: f64 = work.iter().map(|&w| w as f64).sum();
+                // Negative work is not counted, as on the CPU.
+                *force_work += work.max(0.0);
             }
         }
         self.residual.readback.unmap();
         if let Some(c) = &self.clock {
-            c.read(&self.ctx, &mut sim.stage_times)?;
+            c.read(&self.ctx, stage_times)?;
         }
         Ok(())
     }
@@ -468,10 +495,11 @@ impl GpuSimulation {
         uploaded
     }
 
-    /// Records every substep of a frame.
-    fn record_frame(&self, sim: &Simulation) -> wgpu::CommandEncoder {
-        let s = sim.solver_settings();
-        let recording = sim.residuals.is_some();
+    /// Records every substep of a frame (`recording`: with each sweep's residual).
+    // Long: one match over the substep's stages (`sim::schedule`, walked as the CPU walks it),
+    // each arm the dispatches of one stage.
+    fn record_frame(&self, recording: bool) -> wgpu::CommandEncoder {
+        let s = &self.settings;
         let mut encoder = self
             .ctx
             .device
@@ -486,7 +514,7 @@ impl GpuSimulation {
             let recorded = skin.record(&mut encoder);
             self.dispatches.set(self.dispatches.get() + recorded);
         }
-        let integrating = sim.integrating();
+        let integrating = self.integrating;
         let n = self.particles;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("drape frame"),
@@ -515,9 +543,8 @@ impl GpuSimulation {
         }
         tick(&mut pass);
         // The substep's stages as the CPU runs them (`sim::schedule`).
-        let schedule = sim.schedule();
-        for substep in 0..sim.substeps {
-            for &stage in &schedule {
+        for substep in 0..self.substeps {
+            for &stage in &self.schedule {
                 match stage {
                     Stage::Attach => {
                         if self.contact.attached > 0 {
@@ -674,7 +701,7 @@ impl StageClock {
             return None;
         }
         let mut stages = vec![crate::sim::schedule::timed("predict")];
-        for _ in 0..sim.substeps {
+        for _ in 0..sim.substeps() {
             stages.extend(sim.schedule().iter().map(|s| s.timed()));
         }
         let count = stages.len() as u32 + 1;

@@ -13,10 +13,10 @@ pub mod sheet;
 pub mod tube;
 
 use crate::error::{Error, Result};
-use crate::export::gltf::AnimatedMesh;
-use crate::export::obj::vertex_normals;
 use crate::export::spool::Recorded;
 use crate::gpu::GpuContext;
+use crate::mesh::vertex_normals;
+use crate::mesh::AnimatedMesh;
 use camera::View;
 use glam::Vec3;
 use std::path::{Path, PathBuf};

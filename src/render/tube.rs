@@ -2,7 +2,7 @@
 //! pixel wide, unlit and unshadowed; previews draw it as a six-sided tube instead, thick enough
 //! to see (a fixed fraction of the scene's size), so ropes shade and cast shadows like cloth.
 
-use crate::export::gltf::AnimatedMesh;
+use crate::mesh::AnimatedMesh;
 use glam::Vec3;
 
 /// Sides of a tube.

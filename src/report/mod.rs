@@ -62,6 +62,8 @@ pub struct Report {
     /// Every baked frame's particles inside each character's mesh (in `worst_mesh_penetrations`
     /// order) and the deepest [m]; empty without characters.
     pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
+    /// Every baked frame's pairs of garment triangles passing through each other.
+    pub crossings_per_frame: Vec<FrameCrossings>,
     /// Springs broken by tearing over the bake.
     pub torn_springs: usize,
     /// The characters' pre-roll, simulated before the first frame (numbered before
@@ -288,7 +290,18 @@ pub struct FrameMetrics {
     pub mean_shear_deg: f64,
     #[serde(default)]
     pub max_shear_deg: f64,
+    /// Pairs of the garments' exported triangles passing through each other
+    /// ([`crate::collide::crossings`]): cloth through itself or another garment.
+    #[serde(default)]
+    pub crossings: usize,
     pub penetrations: Vec<ColliderPenetration>,
+}
+
+/// One frame's cloth–cloth crossings ([`FrameMetrics::crossings`]).
+#[derive(Clone, Copy, Debug, Serialize, serde::Deserialize)]
+pub struct FrameCrossings {
+    pub frame: u32,
+    pub crossings: usize,
 }
 
 /// Penetration into one collider.

@@ -12,18 +12,18 @@ use serde::{Deserialize, Serialize};
 pub enum ColliderKind {
     /// Half-space: everything below the plane through `point` with normal `normal` is solid.
     Plane,
-    /// Solid sphere of `radius` around `center`.
+    /// Solid sphere of `radius` around `centre`.
     Sphere,
-    /// Solid axis-aligned box of `size` around `center`.
+    /// Solid axis-aligned box of `size` around `centre`.
     Box,
     /// Solid capsule: every point within `radius` of the segment from `start` to `end`.
     Capsule,
     /// A funnel (thesis §5.3.5): an upright cone frustum wall of `thickness`, its spout of
-    /// `radius` centred on `center`, widening to `top_radius` at `height` above it; open at both
+    /// `radius` centred on `centre`, widening to `top_radius` at `height` above it; open at both
     /// ends, so cloth can fall through.
     Funnel,
     /// A wedge: a triangular prism with its blade down, `size` = [width of the top face, height,
-    /// length along Z] around `center`, turned by `rotation`.
+    /// length along Z] around `centre`, turned by `rotation`.
     Wedge,
 }
 
@@ -49,12 +49,12 @@ pub enum ColliderShape {
         normal: Option<[f32; 3]>,
     },
     Sphere {
-        center: [f32; 3],
+        centre: [f32; 3],
         radius: f32,
     },
     /// Edge lengths `size` along X, Y, Z; default rotation none (axis-aligned).
     Box {
-        center: [f32; 3],
+        centre: [f32; 3],
         size: [f32; 3],
         rotation: Option<[f32; 3]>,
     },
@@ -65,14 +65,14 @@ pub enum ColliderShape {
     },
     /// Wall `thickness` default 0.01.
     Funnel {
-        center: [f32; 3],
+        centre: [f32; 3],
         radius: f32,
         top_radius: f32,
         height: f32,
         thickness: Option<f32>,
     },
     Wedge {
-        center: [f32; 3],
+        centre: [f32; 3],
         size: [f32; 3],
         rotation: Option<[f32; 3]>,
     },
@@ -96,14 +96,14 @@ impl ColliderKind {
     fn fields(self) -> (&'static str, &'static [&'static str]) {
         match self {
             ColliderKind::Plane => ("a plane", &["point", "normal"]),
-            ColliderKind::Sphere => ("a sphere", &["center", "radius"]),
-            ColliderKind::Box => ("a box", &["center", "size", "rotation"]),
+            ColliderKind::Sphere => ("a sphere", &["centre", "radius"]),
+            ColliderKind::Box => ("a box", &["centre", "size", "rotation"]),
             ColliderKind::Capsule => ("a capsule", &["start", "end", "radius"]),
             ColliderKind::Funnel => (
                 "a funnel",
-                &["center", "radius", "top_radius", "height", "thickness"],
+                &["centre", "radius", "top_radius", "height", "thickness"],
             ),
-            ColliderKind::Wedge => ("a wedge", &["center", "size", "rotation"]),
+            ColliderKind::Wedge => ("a wedge", &["centre", "size", "rotation"]),
         }
     }
 }
@@ -125,7 +125,7 @@ impl TryFrom<ColliderFields> for ColliderSpec {
         let given = [
             ("point", c.point.is_some()),
             ("normal", c.normal.is_some()),
-            ("center", c.center.is_some()),
+            ("centre", c.centre.is_some()),
             ("radius", c.radius.is_some()),
             ("size", c.size.is_some()),
             ("start", c.start.is_some()),
@@ -154,16 +154,16 @@ impl TryFrom<ColliderFields> for ColliderSpec {
                 normal: c.normal,
             },
             ColliderKind::Sphere => ColliderShape::Sphere {
-                center: need3(c.center, "center")?,
+                centre: need3(c.centre, "centre")?,
                 radius: need(c.radius, "radius")?,
             },
             ColliderKind::Box => ColliderShape::Box {
-                center: need3(c.center, "center")?,
+                centre: need3(c.centre, "centre")?,
                 size: need3(c.size, "size")?,
                 rotation: c.rotation,
             },
             ColliderKind::Wedge => ColliderShape::Wedge {
-                center: need3(c.center, "center")?,
+                centre: need3(c.centre, "centre")?,
                 size: need3(c.size, "size")?,
                 rotation: c.rotation,
             },
@@ -173,7 +173,7 @@ impl TryFrom<ColliderFields> for ColliderSpec {
                 radius: need(c.radius, "radius")?,
             },
             ColliderKind::Funnel => ColliderShape::Funnel {
-                center: need3(c.center, "center")?,
+                centre: need3(c.centre, "centre")?,
                 radius: need(c.radius, "radius")?,
                 top_radius: need(c.top_radius, "top_radius")?,
                 height: need(c.height, "height")?,
@@ -198,31 +198,31 @@ impl From<ColliderSpec> for ColliderFields {
         };
         match c.shape {
             ColliderShape::Plane { point, normal } => (f.point, f.normal) = (point, normal),
-            ColliderShape::Sphere { center, radius } => {
-                (f.center, f.radius) = (Some(center), Some(radius))
+            ColliderShape::Sphere { centre, radius } => {
+                (f.centre, f.radius) = (Some(centre), Some(radius))
             }
             ColliderShape::Box {
-                center,
+                centre,
                 size,
                 rotation,
             }
             | ColliderShape::Wedge {
-                center,
+                centre,
                 size,
                 rotation,
-            } => (f.center, f.size, f.rotation) = (Some(center), Some(size), rotation),
+            } => (f.centre, f.size, f.rotation) = (Some(centre), Some(size), rotation),
             ColliderShape::Capsule { start, end, radius } => {
                 (f.start, f.end, f.radius) = (Some(start), Some(end), Some(radius))
             }
             ColliderShape::Funnel {
-                center,
+                centre,
                 radius,
                 top_radius,
                 height,
                 thickness,
             } => {
-                (f.center, f.radius, f.top_radius, f.height, f.thickness) = (
-                    Some(center),
+                (f.centre, f.radius, f.top_radius, f.height, f.thickness) = (
+                    Some(centre),
                     Some(radius),
                     Some(top_radius),
                     Some(height),
@@ -249,8 +249,10 @@ struct ColliderFields {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     normal: Option<[f32; 3]>,
     /// Sphere, box: centre [m]. Required for them.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    center: Option<[f32; 3]>,
+    /// Also read as `center` (drape's keys are spelt as in British English; the American
+    /// spelling is accepted).
+    #[serde(default, alias = "center", skip_serializing_if = "Option::is_none")]
+    centre: Option<[f32; 3]>,
     /// Sphere, capsule: radius [m]. Required for them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     radius: Option<f32>,

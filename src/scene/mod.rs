@@ -285,6 +285,9 @@ pub struct GarmentSpec {
     /// Sheets: radius [m] of a round hole cut at the centre (a poncho's head hole). Default 0.
     pub hole_radius: f32,
     /// Colour in exports and previews, linear RGB in 0…1. Default: one of a palette by index.
+    /// Also read as `color` (keys are spelt as in British English; the American spelling is
+    /// accepted).
+    #[serde(alias = "color")]
     pub colour: Option<[f32; 3]>,
     /// Springs break when stretched past this strain (0.5: 50 % longer than at rest), checked
     /// after every frame (on the CPU; a GPU bake takes the torn model afresh). Default none: the

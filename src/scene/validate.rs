@@ -598,12 +598,12 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
                 }
             }
         }
-        S::Sphere { center, radius } => {
-            point(center, "center")?;
+        S::Sphere { centre, radius } => {
+            point(centre, "centre")?;
             size(radius, "radius")?;
         }
         S::Funnel {
-            center,
+            centre,
             radius,
             top_radius,
             height,
@@ -615,7 +615,7 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
                     "a funnel stays upright: its keyframes may translate it, not turn it".into(),
                 ));
             }
-            point(center, "center")?;
+            point(centre, "centre")?;
             size(radius, "radius")?;
             size(top_radius, "top_radius")?;
             size(height, "height")?;
@@ -624,16 +624,16 @@ fn validate_collider(c: &super::ColliderSpec) -> std::result::Result<(), (&'stat
             }
         }
         S::Box {
-            center,
+            centre,
             size: edges,
             rotation: r,
         }
         | S::Wedge {
-            center,
+            centre,
             size: edges,
             rotation: r,
         } => {
-            point(center, "center")?;
+            point(centre, "centre")?;
             point(edges, "size")?;
             if edges.iter().any(|&e| e <= 0.0) {
                 return Err((

@@ -16,8 +16,8 @@
 //! smooth ones. The smooth normal is continuous across the crease, so neighbours stay
 //! neighbours.
 
-use crate::character::shell::{welded_normals, Weld};
 use crate::garment::Garment;
+use crate::mesh::{welded_normals, Weld};
 use crate::scene::{GarmentSpec, KeyframeSpec};
 use glam::{EulerRot, Quat, Vec3};
 

@@ -123,6 +123,31 @@ impl Wind {
     }
 }
 
+/// The force fields of a running simulation: the fields, their acceleration of each particle in
+/// the current substep, and the work they have done so far.
+#[derive(Default)]
+pub(super) struct FieldState {
+    /// Wind and attractors, when the scene has force fields.
+    pub(super) fields: Option<Forces>,
+    /// Their acceleration of each particle in the current substep (empty without).
+    pub(super) external: Vec<Vec4>,
+    /// Work the force fields have done on the garments so far, the positive part of each
+    /// substep's [J] (energy supplied, for the stability rule).
+    pub(super) work: f64,
+}
+
+impl FieldState {
+    /// Adds the positive part of the work `external` did on particles of `mass` moving at
+    /// `velocities` over a substep of `h` seconds (each moved by v·h: Σ m a·v h).
+    pub(super) fn add_substep_work(&mut self, velocities: &[Vec4], mass: &[f32], h: f64) {
+        let work: f64 = (self.external.iter().zip(velocities))
+            .zip(mass)
+            .map(|((a, v), &m)| m as f64 * a.dot(*v) as f64 * h)
+            .sum();
+        self.work += work.max(0.0);
+    }
+}
+
 impl Forces {
     /// The fields of `specs` on `model`'s garments; None without any.
     pub fn new(specs: &[ForceSpec], model: &Model) -> Option<Forces> {

@@ -43,3 +43,23 @@ impl Verlet {
         delta * self.inv_step
     }
 }
+
+/// How the simulation integrates time: gravity, damping and, with time integration, the
+/// integrator's constants for the current step.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Integration {
+    /// None without time integration (scene E: only the solver moves particles).
+    pub(super) verlet: Option<Verlet>,
+    pub(super) gravity: glam::Vec3,
+    /// Velocity damping rate [1/s] (the integrator's constants follow the step).
+    pub(super) damping: f32,
+}
+
+impl Integration {
+    /// The constants for steps of `h` seconds (when integrating).
+    pub(super) fn set_step(&mut self, h: f32) {
+        if self.verlet.is_some() {
+            self.verlet = Some(Verlet::new(self.gravity, self.damping, h));
+        }
+    }
+}

@@ -51,10 +51,11 @@ impl Simulation {
     /// The state to resume from after the current frame.
     pub fn snapshot(&self) -> Snapshot {
         let torn = self
+            .tearing
             .garments
             .iter()
             .enumerate()
-            .filter(|(g, _)| self.tear_strain[*g].is_some())
+            .filter(|(g, _)| self.tearing.strain[*g].is_some())
             .map(|(garment, g)| TornGarment {
                 garment,
                 springs: g.springs.iter().map(|s| [s.a, s.b]).collect(),
@@ -65,13 +66,13 @@ impl Simulation {
         Snapshot {
             positions: self.state.positions.clone(),
             velocities: self.state.velocities.clone(),
-            elapsed_substeps: self.elapsed_substeps,
-            substeps: self.substeps,
-            driven_speed: self.driven_speed,
-            torn_springs: self.torn_springs,
-            force_work: self.force_work,
+            elapsed_substeps: self.drivers.clock.elapsed,
+            substeps: self.drivers.clock.substeps,
+            driven_speed: self.drivers.driven_speed,
+            torn_springs: self.tearing.torn_springs,
+            force_work: self.fields.work,
             torn,
-            nearby: self.nearby.clone(),
+            nearby: self.nearby_lists().to_vec(),
         }
     }
 
@@ -88,7 +89,7 @@ impl Simulation {
             ));
         }
         let expected_nearby = if self.solver.settings.contact_passes > 1 {
-            self.shells.len() * n
+            self.drivers.shells.len() * n
         } else {
             0
         };
@@ -97,7 +98,7 @@ impl Simulation {
         }
         // Nothing to rebuild when the topology is what it was (an accuracy target's retry).
         let same = snapshot.torn.iter().all(|t| {
-            self.garments.get(t.garment).is_some_and(|g| {
+            self.tearing.garments.get(t.garment).is_some_and(|g| {
                 g.springs.len() == t.springs.len()
                     && g.triangles.len() == t.triangles.len()
                     && g.tethers.is_empty() != t.tethers
@@ -105,10 +106,10 @@ impl Simulation {
         });
         if !same {
             for t in &snapshot.torn {
-                let g = self
-                    .garments
-                    .get_mut(t.garment)
-                    .ok_or_else(|| format!("it tears garment {}, which is not there", t.garment))?;
+                let g =
+                    self.tearing.garments.get_mut(t.garment).ok_or_else(|| {
+                        format!("it tears garment {}, which is not there", t.garment)
+                    })?;
                 // Tearing only removes springs, keeping the order of the rest.
                 let mut kept = t.springs.iter().peekable();
                 g.springs.retain(|s| {
@@ -137,17 +138,17 @@ impl Simulation {
         self.state.positions = snapshot.positions.clone();
         self.state.velocities = snapshot.velocities.clone();
         self.set_nearby_lists(snapshot.nearby.clone());
-        self.elapsed_substeps = elapsed_substeps;
-        self.settle = None;
-        self.torn_springs = snapshot.torn_springs;
-        self.force_work = snapshot.force_work;
-        if self.elapsed_substeps > 0 {
+        self.drivers.clock.elapsed = elapsed_substeps;
+        self.settling.end();
+        self.tearing.torn_springs = snapshot.torn_springs;
+        self.fields.work = snapshot.force_work;
+        if self.drivers.clock.elapsed > 0 {
             // Keyframed colliders in their pose at the end of the last substep (the next one
             // measures its motion from there).
-            let t = self.elapsed_substeps as f32 / (self.substeps as f32 * self.fps);
-            self.pose_colliders(t);
+            let t = self.drivers.clock.time();
+            self.drivers.pose_colliders(t);
         }
-        self.driven_speed = snapshot.driven_speed;
+        self.drivers.driven_speed = snapshot.driven_speed;
         Ok(())
     }
 
@@ -155,7 +156,7 @@ impl Simulation {
     /// snapshot's, else its whole frames (a snapshot is taken between frames) times ours.
     fn elapsed_substeps_of(&self, snapshot: &Snapshot) -> Result<u64, String> {
         let theirs = snapshot.substeps as u64;
-        let ours = self.substeps as u64;
+        let ours = self.drivers.clock.substeps as u64;
         if theirs == 0 || theirs == ours {
             return Ok(snapshot.elapsed_substeps);
         }

@@ -30,7 +30,7 @@ pub(super) fn focus_holds_for(
     p.distance(origin) + within <= allowed
 }
 
-/// The focus's check for the next substep ([`super::Simulation::focus_shells`]), made by
+/// The focus's check for the next substep ([`super::drivers::Drivers::focus_shells`]), made by
 /// `finish` as it commits each particle: `outran` is set when a particle is not within its
 /// origin's allowance.
 pub(super) struct FocusCheck<'a> {
@@ -60,11 +60,13 @@ pub(super) struct Stages<'a> {
     pub(super) velocities: Shared<Vec4>,
     /// Particle–particle pushes of this substep, when those collisions are on.
     pub(super) pushes: Option<Shared<Vec4>>,
+    /// Their hash grid, rebuilt every substep.
+    pub(super) grid: &'a RwLock<Grid>,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     pub(super) nearby: Shared<crate::collide::shell::Nearby>,
     /// How many entries each nearby list holds.
     pub(super) listed: Shared<u8>,
-    /// Each list's gap ([`super::Simulation::listed_gap`]).
+    /// Each list's gap ([`super::workspace::Workspace`]'s `listed_gap`).
     pub(super) listed_gap: Shared<f32>,
     /// Each particle's clearance from the quiet colliders (with collision passes).
     pub(super) clearance: Shared<f32>,
@@ -94,13 +96,8 @@ pub(super) struct Stages<'a> {
 impl Stages<'_> {
     /// Particle–particle collisions: one thread sorts the predicted positions q = x + Δ into
     /// the grid, then every thread computes its particles' pushes (added by `finish`).
-    pub(super) fn particle_collisions(
-        &self,
-        m: &Member,
-        pc: &ParticleCollisions,
-        grid: &RwLock<Grid>,
-    ) {
-        let (model, b) = (self.model, &self.b);
+    pub(super) fn particle_collisions(&self, m: &Member, pc: &ParticleCollisions) {
+        let (model, b, grid) = (self.model, &self.b, self.grid);
         // SAFETY: between two syncs nobody writes x or Δ.
         let (x, d) = unsafe { (b.x.read_all(), b.delta.read_all()) };
         let q = |i: usize| x[i] + d[i];

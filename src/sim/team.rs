@@ -270,6 +270,8 @@ pub struct Sharing {
     adaptive: bool,
     /// Frames run on one thread so far.
     pub solo_frames: u32,
+    /// The current frame's regions: their barriers and the waits that slept at them.
+    frame: RegionStats,
 }
 
 /// The first solo stretch, frames.
@@ -285,6 +287,7 @@ impl Default for Sharing {
             solo_seconds: None,
             adaptive: true,
             solo_frames: 0,
+            frame: RegionStats::default(),
         }
     }
 }
@@ -305,6 +308,26 @@ impl Sharing {
         } else {
             rayon::current_num_threads().max(1)
         }
+    }
+
+    /// Starts counting a frame's regions.
+    pub fn begin_frame(&mut self) {
+        self.frame = RegionStats {
+            threads: self.threads(),
+            ..RegionStats::default()
+        };
+    }
+
+    /// Counts one region of the current frame.
+    pub fn count(&mut self, region: RegionStats) {
+        self.frame.barriers += region.barriers;
+        self.frame.slept += region.slept;
+    }
+
+    /// After the current frame, which took `seconds` ([`Sharing::after_frame`] with the
+    /// regions counted since [`Sharing::begin_frame`]).
+    pub fn end_frame(&mut self, seconds: f64) {
+        self.after_frame(self.frame, seconds);
     }
 
     /// After a frame that took `seconds`, whose regions went as `stats` (summed) on

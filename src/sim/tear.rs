@@ -72,3 +72,38 @@ pub fn tear(garment: &mut Garment, positions: &[Vec3], threshold: f32) -> usize 
     garment.tethers.clear();
     broken.len()
 }
+
+/// The garments as built and as torn so far, each one's tearing strain, and the springs broken.
+pub(super) struct Tearing {
+    pub(super) garments: Vec<Garment>,
+    /// Per garment, the strain past which its springs break (None: it does not tear).
+    pub(super) strain: Vec<Option<f32>>,
+    /// Springs broken so far.
+    pub(super) torn_springs: usize,
+}
+
+impl Tearing {
+    /// Breaks the springs of tearable garments stretched past their strain at `positions`
+    /// (export order; `ranges`: each garment's share); returns how many broke.
+    pub(super) fn tear(
+        &mut self,
+        positions: &[Vec3],
+        ranges: impl Iterator<Item = std::ops::Range<usize>>,
+    ) -> usize {
+        let mut broken = 0;
+        for ((garment, threshold), range) in self.garments.iter_mut().zip(&self.strain).zip(ranges)
+        {
+            let Some(threshold) = *threshold else {
+                continue;
+            };
+            broken += tear(garment, &positions[range], threshold);
+        }
+        self.torn_springs += broken;
+        broken
+    }
+
+    /// True when some garment can tear.
+    pub(super) fn any(&self) -> bool {
+        self.strain.iter().any(Option::is_some)
+    }
+}

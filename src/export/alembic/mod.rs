@@ -15,9 +15,9 @@
 mod archive;
 mod ogawa;
 
-use super::obj::vertex_normals;
 use super::sink::{Frame, FrameSink, MeshInfo, Role, Written};
 use crate::error::Result;
+use crate::mesh::vertex_normals;
 use archive::{Archive, Compound, Node, Pod, Property, SAMPLED};
 use glam::Vec3;
 use ogawa::Ogawa;

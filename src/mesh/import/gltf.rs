@@ -136,22 +136,9 @@ fn meshes(
                 Some(i) => i.into_u32().collect(),
                 None => (0..vertices.len() as u32).collect(),
             };
-            let triangles = match primitive.mode() {
-                Mode::Triangles => indices
-                    .chunks_exact(3)
-                    .map(|t| [t[0], t[1], t[2]])
-                    .collect(),
-                Mode::TriangleStrip => (2..indices.len())
-                    .map(|i| match i % 2 {
-                        0 => [indices[i - 2], indices[i - 1], indices[i]],
-                        _ => [indices[i - 1], indices[i - 2], indices[i]],
-                    })
-                    .collect(),
-                Mode::TriangleFan => (2..indices.len())
-                    .map(|i| [indices[0], indices[i - 1], indices[i]])
-                    .collect(),
-                // Points and lines are no surface to collide with.
-                _ => continue,
+            // Points and lines are no surface to collide with.
+            let Some(triangles) = triangles_of(primitive.mode(), &indices) else {
+                continue;
             };
             let mut weights = vec![Vec::new(); vertices.len()];
             if skin.is_some() {
@@ -203,6 +190,26 @@ fn meshes(
         }
     }
     Ok(out)
+}
+
+/// The triangles of a primitive drawn in `mode` from `indices` (None for points and lines).
+fn triangles_of(mode: Mode, indices: &[u32]) -> Option<Vec<[u32; 3]>> {
+    Some(match mode {
+        Mode::Triangles => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
+        Mode::TriangleStrip => (2..indices.len())
+            .map(|i| match i % 2 {
+                0 => [indices[i - 2], indices[i - 1], indices[i]],
+                _ => [indices[i - 1], indices[i - 2], indices[i]],
+            })
+            .collect(),
+        Mode::TriangleFan => (2..indices.len())
+            .map(|i| [indices[0], indices[i - 1], indices[i]])
+            .collect(),
+        _ => return None,
+    })
 }
 
 /// A skin's joints as bones: the node each names and its inverse bind matrix.

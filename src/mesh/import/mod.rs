@@ -184,7 +184,7 @@ impl Asset {
     /// selection that keeps no triangle, naming the file's meshes.
     pub fn colliding_triangles(
         &self,
-        selection: Option<&crate::character::MeshSelection>,
+        selection: Option<&crate::scene::MeshSelection>,
         file: &Path,
     ) -> Result<Vec<[u32; 3]>> {
         let Some(selection) = selection else {

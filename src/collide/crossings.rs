@@ -1,0 +1,229 @@
+//! Cloth passing through itself, counted: the pairs of garment triangles that share no vertex
+//! and intersect (an edge of one passes through the other), within a garment and between
+//! garments. `report.json` gives the count per frame beside strain (`crossings`), so a user
+//! sees cloth passing through itself, which no strain or penetration figure shows.
+//!
+//! Triangles that share a vertex touch by construction and are left out; two layers lying
+//! flat on each other without passing through do not count, however close. The pairs are
+//! found through a uniform grid over the triangles' bounding boxes (a cell two mean edges
+//! long), each pair tested once, in the cell holding the low corner of the two boxes' overlap.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// The number of pairs of `triangles` (over `positions`) that share no vertex and intersect.
+pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
+    if triangles.len() < 2 {
+        return 0;
+    }
+    let corners = |t: &[u32; 3]| t.map(|i| positions[i as usize]);
+    let boxes: Vec<(Vec3, Vec3)> = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = corners(t);
+            (a.min(b).min(c), a.max(b).max(c))
+        })
+        .collect();
+    let edges: f32 = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = corners(t);
+            a.distance(b) + b.distance(c) + c.distance(a)
+        })
+        .sum();
+    let cell = (2.0 * edges / (3 * triangles.len()) as f32).max(1e-6);
+    let grid = |p: Vec3| (p / cell).floor().as_ivec3();
+    // 21 bits a coordinate (a garment spans far fewer cells), packed so one integer sorts.
+    let pack = |c: glam::IVec3| {
+        let bits = |v: i32| (v as u64) & 0x1f_ffff;
+        (bits(c.x) << 42) | (bits(c.y) << 21) | bits(c.z)
+    };
+    let key = |p: Vec3| pack(grid(p));
+    // Every (cell, triangle) its box covers, sorted by cell: each run is one cell's list.
+    let mut entries: Vec<(u64, u32)> = Vec::with_capacity(4 * triangles.len());
+    for (i, (lo, hi)) in boxes.iter().enumerate() {
+        let (a, b) = (grid(*lo), grid(*hi));
+        for x in a.x..=b.x {
+            for y in a.y..=b.y {
+                for z in a.z..=b.z {
+                    entries.push((pack(glam::IVec3::new(x, y, z)), i as u32));
+                }
+            }
+        }
+    }
+    entries.sort_unstable();
+    let runs: Vec<&[(u64, u32)]> = entries.chunk_by(|a, b| a.0 == b.0).collect();
+    runs.par_iter()
+        .map(|run| {
+            let at = run[0].0;
+            let mut crossings = 0;
+            for (k, &(_, i)) in run.iter().enumerate() {
+                for &(_, j) in &run[k + 1..] {
+                    let (i, j) = (i as usize, j as usize);
+                    let (lo, hi) = (boxes[i].0.max(boxes[j].0), boxes[i].1.min(boxes[j].1));
+                    // Boxes apart, or the pair belongs to another cell they share.
+                    if lo.cmpgt(hi).any() || key(lo) != at {
+                        continue;
+                    }
+                    let (s, t) = (triangles[i], triangles[j]);
+                    if s.iter().any(|v| t.contains(v)) {
+                        continue;
+                    }
+                    if intersect(corners(&s), corners(&t)) {
+                        crossings += 1;
+                    }
+                }
+            }
+            crossings
+        })
+        .sum()
+}
+
+/// True when triangles `s` and `t` intersect: an edge of one passes through the other.
+pub fn intersect(s: [Vec3; 3], t: [Vec3; 3]) -> bool {
+    // Most pairs near each other lie wholly on one side of the other's plane: no edge can
+    // pass through it then (Möller's first test), and the edge tests are left out.
+    let apart = |s: [Vec3; 3], t: [Vec3; 3]| {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let d = s.map(|p| n.dot(p - t[0]));
+        d.iter().all(|&d| d > 0.0) || d.iter().all(|&d| d < 0.0)
+    };
+    if apart(s, t) || apart(t, s) {
+        return false;
+    }
+    let edges_through =
+        |s: [Vec3; 3], t: [Vec3; 3]| (0..3).any(|k| segment_hits(s[k], s[(k + 1) % 3], t));
+    edges_through(s, t) || edges_through(t, s)
+}
+
+/// True when the segment `p`–`q` passes through triangle `t` (Möller–Trumbore, ends and
+/// edges included; a segment in the triangle's plane never does).
+fn segment_hits(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> bool {
+    let d = q - p;
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    if det.abs() <= 1e-12 * e1.length_squared() * d.length_squared().max(1e-30) {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = p - a;
+    let u = inv * s.dot(h);
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let qv = s.cross(e1);
+    let v = inv * d.dot(qv);
+    if v < 0.0 || u + v > 1.0 {
+        return false;
+    }
+    let along = inv * e2.dot(qv);
+    (0.0..=1.0).contains(&along)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An `n` × `n` grid of squares of side `1/n` from `origin` along `u` and `v`, each split
+    /// along its rising diagonal.
+    fn sheet(n: u32, origin: Vec3, u: Vec3, v: Vec3, first: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let mut p = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                p.push(origin + u * (i as f32 / n as f32) + v * (j as f32 / n as f32));
+            }
+        }
+        let at = |i: u32, j: u32| first + j * (n + 1) + i;
+        let mut t = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                t.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                t.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        (p, t)
+    }
+
+    #[test]
+    fn a_flat_sheet_and_two_close_layers_do_not_cross() {
+        let (p, t) = sheet(8, Vec3::ZERO, Vec3::X, Vec3::Z, 0);
+        assert_eq!(count(&p, &t), 0);
+        // A second layer 1 mm above: close, but not through.
+        let (q, s) = sheet(8, Vec3::Y * 1e-3, Vec3::X, Vec3::Z, p.len() as u32);
+        let (p, t) = ([p, q].concat(), [t, s].concat());
+        assert_eq!(count(&p, &t), 0);
+    }
+
+    #[test]
+    fn two_sheets_through_each_other_cross_where_their_pieces_of_the_line_overlap() {
+        // Sheet A in the plane z = 0 (x, y in 0…1), sheet B in the plane y = 0.55 (x from 0.07,
+        // z from −0.45): they cross along the line y = 0.55, z = 0. Each triangle meets that
+        // line in an interval of x; two triangles intersect where their intervals overlap.
+        let n = 5;
+        let (pa, ta) = sheet(n, Vec3::ZERO, Vec3::X, Vec3::Y, 0);
+        let first = pa.len() as u32;
+        // B's columns are shifted from A's so no edge of one meets an edge of the other on the
+        // line (a touch at a point, which the grid pieces of real cloth never line up for).
+        let (pb, tb) = sheet(n, Vec3::new(0.07, 0.55, -0.45), Vec3::X, Vec3::Z, first);
+        let positions = [pa, pb].concat();
+        let triangles = [ta.clone(), tb.clone()].concat();
+        // The interval of x a triangle covers on a line across it at `height` (its second
+        // coordinate, y for A and z for B), by its edges' crossings of that height.
+        let interval = |t: &[u32; 3], coordinate: fn(Vec3) -> f32, height: f32| {
+            let c = t.map(|i| positions[i as usize]);
+            let mut xs = Vec::new();
+            for k in 0..3 {
+                let (a, b) = (c[k], c[(k + 1) % 3]);
+                let (ha, hb) = (coordinate(a) - height, coordinate(b) - height);
+                if ha * hb < 0.0 {
+                    xs.push(a.x + (b.x - a.x) * ha / (ha - hb));
+                }
+            }
+            (xs.len() == 2).then(|| (xs[0].min(xs[1]), xs[0].max(xs[1])))
+        };
+        let a: Vec<(f32, f32)> = ta
+            .iter()
+            .filter_map(|t| interval(t, |p| p.y, 0.55))
+            .collect();
+        let b: Vec<(f32, f32)> = tb
+            .iter()
+            .filter_map(|t| interval(t, |p| p.z, 0.0))
+            .collect();
+        let expected = a
+            .iter()
+            .flat_map(|x| b.iter().map(move |y| (x, y)))
+            .filter(|(x, y)| x.0.max(y.0) < x.1.min(y.1) - 1e-6)
+            .count();
+        // Two triangles of A's row and two of B's per column of cells meet the line.
+        assert_eq!((a.len(), b.len()), (2 * n as usize, 2 * n as usize));
+        assert!(expected >= 2 * n as usize, "{expected}");
+        assert_eq!(count(&positions, &triangles), expected);
+        // B moved half a metre along z no longer reaches A.
+        let apart: Vec<Vec3> = (positions.iter().enumerate())
+            .map(|(i, p)| {
+                if i < first as usize {
+                    *p
+                } else {
+                    *p + Vec3::Z * 0.5
+                }
+            })
+            .collect();
+        assert_eq!(count(&apart, &triangles), 0);
+    }
+
+    #[test]
+    fn a_sheet_folded_through_itself_crosses_and_neighbours_never_count() {
+        // A strip whose far half is turned up through its near half (an X seen from the side):
+        // a garment passing through itself.
+        let (mut p, t) = sheet(6, Vec3::ZERO, Vec3::X, Vec3::Z, 0);
+        let flat = count(&p, &t);
+        // The far half runs back under the near one and rises through it at x = 0.275.
+        for q in p.iter_mut().filter(|q| q.x > 0.5) {
+            let x = q.x - 0.5;
+            *q = Vec3::new(0.5 - 0.9 * x, -0.2 + 0.8 * x, q.z);
+        }
+        assert_eq!(flat, 0);
+        assert!(count(&p, &t) > 0);
+    }
+}

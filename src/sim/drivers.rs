@@ -1,0 +1,323 @@
+//! Drivers: what moves the garments from outside the solve (colliders and their keyframed
+//! motion, characters' shells, attached particles' targets), the clock they run on, and the
+//! shells' focus. The CPU backend places them substep by substep between its team regions; a
+//! backend that runs whole frames elsewhere (the GPU) takes a frame of them at once
+//! ([`Drivers::drive_frame`]) with the state, and nothing else of the simulation.
+
+use super::attach::{Attachments, Track};
+use super::schedule;
+use super::state::State;
+use crate::collide::shell::{NearGarments, ShellSnapshot};
+use crate::collide::{Collider, Shape, ShellCollider};
+use crate::scene::Scene;
+use glam::{Vec3, Vec4};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// How much farther than their motion predicts the garments may go before the shells' focus is
+/// made again [m].
+const FOCUS_SLACK: f32 = 0.02;
+
+/// Everything that moves the garments from outside, on one clock.
+pub struct Drivers {
+    pub colliders: Vec<Collider>,
+    /// Keyframed colliders: (index in `colliders`, motion, shape at rest).
+    collider_motion: Vec<(usize, Track, Shape)>,
+    /// Characters' collision shells.
+    pub shells: Vec<ShellCollider>,
+    /// Particles following animated targets.
+    pub attachments: Attachments,
+    pub clock: Clock,
+    /// Fastest any attached particle, keyframed collider or skin has moved so far [m/s].
+    pub(super) driven_speed: f32,
+    pub focus: Focus,
+}
+
+/// The simulation's clock: substeps run so far, per frame, and their length.
+#[derive(Clone, Copy, Debug)]
+pub struct Clock {
+    /// Substeps simulated since the bake's start.
+    pub(super) elapsed: u64,
+    pub substeps: u32,
+    /// Length of one substep [s].
+    pub step: f32,
+    /// Frames per second (the clock of characters and keyframes).
+    pub fps: f32,
+}
+
+impl Clock {
+    /// The time at the end of the coming substep [s].
+    pub(super) fn next_time(&self) -> f32 {
+        (self.elapsed + 1) as f32 / (self.substeps as f32 * self.fps)
+    }
+
+    /// The time now [s].
+    pub(super) fn time(&self) -> f32 {
+        self.elapsed as f32 / (self.substeps as f32 * self.fps)
+    }
+
+    /// Substeps simulated since the bake's start.
+    pub fn elapsed(&self) -> u64 {
+        self.elapsed
+    }
+}
+
+/// The shells' focus on the garments (see `collide::shell`'s `Focus`): where the garment
+/// particles were when it was made and how far it lets them go, and the check the last
+/// substep's `finish` made of it.
+#[derive(Default)]
+pub struct Focus {
+    /// Whether the CPU focuses shells at all (on by default; off shows what it saves).
+    pub enabled: bool,
+    /// Per particle: where it was when the focus was made, and how far from there it may go [m].
+    pub(super) origin: Vec<(Vec4, f32)>,
+    /// The substep count at which `outran` tells whether the focus holds (set by the last
+    /// substep's `finish`, within [`super::Simulation::step_frame`] only).
+    pub(super) checked_at: Option<u64>,
+    pub(super) outran: AtomicBool,
+}
+
+/// What drives one frame, substep by substep (see [`Drivers::drive_frame`]).
+#[derive(Clone, Debug, Default)]
+pub struct DrivenFrame {
+    /// Per substep: each attached particle (storage index) and its target [m].
+    pub attachments: Vec<Vec<(u32, Vec3)>>,
+    /// Per substep: every collider in its pose at the end of that substep.
+    pub colliders: Vec<Vec<Collider>>,
+    /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`] (None for a shell
+    /// that never moves, unless asked for, then with the first substep only: the GPU keeps it
+    /// from its first upload; and None for a shell the GPU places itself).
+    pub shells: Vec<Vec<Option<ShellSnapshot>>>,
+}
+
+impl Drivers {
+    /// The colliders of `scene` (swept as it says) with their keyframed motion, `attachments`,
+    /// no shells yet, and the clock at zero.
+    pub(super) fn new(scene: &Scene, attachments: Attachments) -> Drivers {
+        let colliders = (scene.colliders.iter())
+            .map(|spec| Collider {
+                swept: scene.swept_collisions,
+                ..Collider::from_spec(spec)
+            })
+            .collect();
+        let collider_motion = (scene.colliders.iter().enumerate())
+            .filter(|(_, spec)| !spec.keyframes.is_empty())
+            .map(|(i, spec)| {
+                let shape = Collider::from_spec(spec).shape;
+                (i, Track::new(&spec.keyframes, shape.centre()), shape)
+            })
+            .collect();
+        let substeps = scene.substeps_per_frame();
+        Drivers {
+            colliders,
+            collider_motion,
+            shells: Vec::new(),
+            attachments,
+            clock: Clock {
+                elapsed: 0,
+                substeps,
+                step: scene.step_seconds(),
+                fps: scene.fps,
+            },
+            driven_speed: 0.0,
+            focus: Focus {
+                enabled: true,
+                ..Focus::default()
+            },
+        }
+    }
+
+    /// True when anything here moves between substeps (a frame then runs substep by substep
+    /// on the CPU).
+    pub(super) fn move_within_frames(&self) -> bool {
+        !self.shells.is_empty() || !self.attachments.list.is_empty() || self.moving_colliders()
+    }
+
+    /// True when some collider follows keyframes.
+    pub fn moving_colliders(&self) -> bool {
+        !self.collider_motion.is_empty()
+    }
+
+    /// Puts every attached particle of `state` where its target is at the end of the coming
+    /// substep, with the velocity that got it there, and every keyframed collider in its pose
+    /// then.
+    pub(super) fn place_attachments(&mut self, state: &mut State) {
+        let t = self.clock.next_time();
+        self.pose_colliders(t);
+        let (step, fps) = (self.clock.step, self.clock.fps);
+        for a in &self.attachments.list {
+            let i = a.particle as usize;
+            let target = self.attachments.position(a, t, fps).extend(0.0);
+            state.velocities[i] = (target - state.positions[i]) / step;
+            self.driven_speed = self.driven_speed.max(state.velocities[i].length());
+            state.positions[i] = target;
+        }
+    }
+
+    /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there.
+    pub(super) fn pose_colliders(&mut self, t: f32) {
+        for (i, track, rest) in &self.collider_motion {
+            let (rotation, translation) = track.pose(t);
+            let shape = rest.moved(track.pivot, rotation, translation);
+            let c = &mut self.colliders[*i];
+            c.moved = shape.centre() - c.shape.centre();
+            c.shape = shape;
+            self.driven_speed = self.driven_speed.max(c.moved.length() / self.clock.step);
+        }
+    }
+
+    /// Moves the characters' shells not marked in `skip` to the end of the coming substep,
+    /// gridded for contacts of `reach` [m].
+    pub(super) fn advance_shells_but(&mut self, skip: &[bool], reach: f32) {
+        if self.shells.is_empty() {
+            return;
+        }
+        let per_frame = self.clock.substeps as f32;
+        let from = self.clock.elapsed as f32 / per_frame;
+        let to = (self.clock.elapsed + 1) as f32 / per_frame;
+        for (i, s) in self.shells.iter_mut().enumerate() {
+            if skip.get(i) == Some(&true) {
+                continue;
+            }
+            s.advance(from, to, reach);
+            self.driven_speed = self.driven_speed.max(s.fastest_motion() / self.clock.step);
+        }
+    }
+
+    /// Moves the shells marked in `whole` over the coming frame in one go (their positions at
+    /// its end serve the metrics; their motion over it, spread over its substeps, the driven
+    /// speed): for shells a GPU places itself substep by substep.
+    fn advance_shells_over_frame(&mut self, whole: &[bool], reach: f32) {
+        let per_frame = self.clock.substeps as f32;
+        let from = self.clock.elapsed as f32 / per_frame;
+        let to = (self.clock.elapsed + self.clock.substeps as u64) as f32 / per_frame;
+        for (s, _) in self.shells.iter_mut().zip(whole).filter(|(_, &w)| w) {
+            s.advance(from, to, reach);
+            let per_substep = s.fastest_motion() / per_frame;
+            self.driven_speed = self.driven_speed.max(per_substep / self.clock.step);
+        }
+    }
+
+    /// Where the attached particles go (storage index, target) and where the colliders are, at
+    /// the end of each substep of the next frame, substep by substep; advances the clock by a
+    /// frame as if it ran, leaving the colliders in their last pose: for a backend that runs
+    /// the frame elsewhere (the GPU) and copies the state back. `static_shells`: include the
+    /// shells that never move too, with the first substep (the GPU needs them once). The shells
+    /// marked in `placed_elsewhere` (the GPU places them from their skins) have no snapshots:
+    /// they are moved over the whole frame at once. `state`: where the attached particles are
+    /// now; `reach`: the largest contact radius the shells are gridded for; the shells' time
+    /// goes to `times`.
+    pub fn drive_frame(
+        &mut self,
+        state: &State,
+        reach: f32,
+        static_shells: bool,
+        placed_elsewhere: &[bool],
+        times: &mut schedule::StageTimes,
+    ) -> DrivenFrame {
+        // The GPU reads every shell particle.
+        for s in &mut self.shells {
+            s.unfocus();
+        }
+        let mut frame = DrivenFrame::default();
+        let start = std::time::Instant::now();
+        self.advance_shells_over_frame(placed_elsewhere, reach);
+        times.lap(schedule::timed("shells"), start);
+        let mut last: Vec<Vec3> = (self.attachments.list.iter())
+            .map(|a| state.positions[a.particle as usize].truncate())
+            .collect();
+        for substep in 0..self.clock.substeps {
+            let start = std::time::Instant::now();
+            self.advance_shells_but(placed_elsewhere, reach);
+            frame.shells.push(
+                (self.shells.iter().enumerate())
+                    .map(|(i, s)| {
+                        let elsewhere = placed_elsewhere.get(i) == Some(&true);
+                        // A shell that never moves: once, with the first substep.
+                        let once = static_shells && substep == 0;
+                        let wanted = !elsewhere && (once || !s.is_static());
+                        wanted.then(|| s.gpu_snapshot())
+                    })
+                    .collect(),
+            );
+            times.lap(schedule::timed("shells"), start);
+            let t = self.clock.next_time();
+            let (step, fps) = (self.clock.step, self.clock.fps);
+            frame.attachments.push(
+                (self.attachments.list.iter().zip(&mut last))
+                    .map(|(a, last)| {
+                        let target = self.attachments.position(a, t, fps);
+                        let speed = target.distance(*last) / step;
+                        self.driven_speed = self.driven_speed.max(speed);
+                        *last = target;
+                        (a.particle, target)
+                    })
+                    .collect(),
+            );
+            self.pose_colliders(t);
+            frame.colliders.push(self.colliders.clone());
+            self.clock.elapsed += 1;
+        }
+        frame
+    }
+
+    /// Keeps each shell focused on the particles of `state` that can come near the garments:
+    /// at a frame's start (`frame_start`), or when a garment particle is about to go farther
+    /// from where it was when the focus was made than the focus allows it. The focus allows
+    /// each particle its own speed and gravity `g` [m/s²] over a frame, twice, plus
+    /// [`FOCUS_SLACK`]; before each substep, each particle must be within that of its place
+    /// then, less twice its own motion in a substep and twice the shells' fastest. `contact`:
+    /// the largest contact radius [m].
+    pub(super) fn focus_shells(&mut self, state: &State, g: f32, contact: f32, frame_start: bool) {
+        if !self.focus.enabled || !self.shells.iter().any(|s| s.can_focus()) {
+            return;
+        }
+        if !frame_start && self.focus.origin.len() == state.positions.len() {
+            // Checked by the last substep's `finish` as it committed each particle, when it could.
+            let holds = if self.focus.checked_at == Some(self.clock.elapsed) {
+                !self.focus.outran.load(Ordering::Relaxed)
+            } else {
+                let terms = self.focus_terms(g);
+                (state.positions.iter().zip(&state.velocities))
+                    .zip(&self.focus.origin)
+                    .all(|((p, v), o)| super::stages::focus_holds_for(*p, *v, *o, terms))
+            };
+            if holds {
+                return;
+            }
+        }
+        let frame = 1.0 / self.clock.fps;
+        let allowance = |v: &Vec4| 2.0 * (v.length() * frame + g * frame * frame) + FOCUS_SLACK;
+        self.focus.origin.clear();
+        self.focus.origin.extend(
+            (state.positions.iter().zip(&state.velocities)).map(|(p, v)| (*p, allowance(v))),
+        );
+        let shell_radius = self.shells.iter().map(|s| s.radius).fold(0.0, f32::max);
+        let reach = contact + shell_radius;
+        let reaches: Vec<(Vec3, f32)> = (self.focus.origin.iter())
+            .map(|(p, allowed)| (p.truncate(), allowed + 2.0 * reach))
+            .collect();
+        let near = NearGarments::new(&reaches, 4.0 * reach);
+        let from = self.clock.elapsed as f32 / self.clock.substeps as f32;
+        let per_substep = 1.0 / self.clock.substeps as f32;
+        for s in &mut self.shells {
+            s.focus(from, &near, per_substep);
+        }
+    }
+
+    /// What `focus_holds_for` allows for besides each particle's own motion: the substep,
+    /// gravity `g` and the shells' fastest motion in the current substep.
+    pub(super) fn focus_terms(&self, g: f32) -> (f32, f32, f32) {
+        let carried = (self.shells.iter())
+            .map(|s| s.fastest_motion())
+            .fold(0.0, f32::max);
+        (self.clock.step, g, carried)
+    }
+
+    /// Whether the last substep's `finish` checks the focus for the next one: it is on, made
+    /// for `particles` particles, and some shell is focused.
+    pub(super) fn focus_checkable(&self, particles: usize) -> bool {
+        self.focus.enabled
+            && self.focus.origin.len() == particles
+            && self.shells.iter().any(|s| s.focused().is_some())
+    }
+}
