@@ -38,11 +38,12 @@ pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
         let bits = |v: i32| (v as u64) & 0x1f_ffff;
         (bits(c.x) << 42) | (bits(c.y) << 21) | bits(c.z)
     };
-    let key = |p: Vec3| pack(grid(p));
+    // Each box's low cell: the low corner of two boxes' overlap is in the larger of theirs.
+    let low: Vec<glam::IVec3> = boxes.iter().map(|(lo, _)| grid(*lo)).collect();
     // Every (cell, triangle) its box covers, sorted by cell: each run is one cell's list.
     let mut entries: Vec<(u64, u32)> = Vec::with_capacity(4 * triangles.len());
-    for (i, (lo, hi)) in boxes.iter().enumerate() {
-        let (a, b) = (grid(*lo), grid(*hi));
+    for (i, (_, hi)) in boxes.iter().enumerate() {
+        let (a, b) = (low[i], grid(*hi));
         for x in a.x..=b.x {
             for y in a.y..=b.y {
                 for z in a.z..=b.z {
@@ -51,7 +52,7 @@ pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
             }
         }
     }
-    entries.sort_unstable();
+    entries.par_sort_unstable();
     let runs: Vec<&[(u64, u32)]> = entries.chunk_by(|a, b| a.0 == b.0).collect();
     runs.par_iter()
         .map(|run| {
@@ -62,7 +63,7 @@ pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
                     let (i, j) = (i as usize, j as usize);
                     let (lo, hi) = (boxes[i].0.max(boxes[j].0), boxes[i].1.min(boxes[j].1));
                     // Boxes apart, or the pair belongs to another cell they share.
-                    if lo.cmpgt(hi).any() || key(lo) != at {
+                    if lo.cmpgt(hi).any() || pack(low[i].max(low[j])) != at {
                         continue;
                     }
                     let (s, t) = (triangles[i], triangles[j]);
