@@ -117,6 +117,11 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
             last.total_squared_error
         );
     }
+    print_crossings(r);
+}
+
+/// The bake's cloth–cloth crossings: how many frames pass through themselves, and the worst.
+fn print_crossings(r: &drape::report::Report) {
     if let Some(worst) = r
         .crossings_per_frame
         .iter()
