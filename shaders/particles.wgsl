@@ -3,7 +3,8 @@
 // diameter wide (a counting sort: count, one-workgroup scan, scatter), each bucket's particles
 // are put in ascending order (the scatter's atomics leave them in any order, and the order sets
 // the order of the sums below: with it, runs are repeatable and match the CPU), and every
-// particle sums its pushes out of the particles it overlaps, all from the same q (Jacobi).
+// particle moves by the mean of its pushes out of the particles it overlaps, all from the same q
+// (Jacobi).
 // `finish` adds the push to Δ.
 
 const SKIP_STEPS: i32 = 2;
@@ -136,6 +137,7 @@ fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
     var seen: array<u32, 8>;
     var count = 0u;
     var push = vec4<f32>(0.0);
+    var touching = 0u;
     for (var corner = 0u; corner < 8u; corner = corner + 1u) {
         let pick = vec3<i32>(vec3<u32>(corner, corner >> 1u, corner >> 2u) & vec3<u32>(1u));
         let b = pc_bucket_of(c + side * pick);
@@ -161,7 +163,9 @@ fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
             }
             let wj = particle[j].inv_mass;
             push = push + d * ((contacts.diameter - distance) / distance * wi / (wi + wj));
+            touching = touching + 1u;
         }
     }
-    pc_push[i] = push;
+    // Averaged over the contacts (ParticleCollisions::push_out says why).
+    pc_push[i] = push / f32(max(touching, 1u));
 }

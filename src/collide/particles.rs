@@ -4,10 +4,11 @@
 //! Every substep, after the solver, the predicted positions q = x + Δ are sorted into a uniform
 //! hash grid whose cells are one particle diameter wide (a counting sort, so building costs two
 //! passes over the particles), and each particle is pushed out of every other particle closer
-//! than one diameter: a Jacobi pass, each particle moving by its share of the overlap (by inverse
-//! mass, so pinned particles stay), all corrections computed from the same q, so the result does
-//! not depend on the order or the thread count. Pairs of one garment within two lattice steps of
-//! each other are skipped: springs hold them, and at rest they already touch.
+//! than one diameter: a Jacobi pass, each particle moving by the mean of its pushes (each its
+//! share of one overlap by inverse mass, so pinned particles stay), all corrections computed
+//! from the same q, so the result does not depend on the order or the thread count. Pairs of one
+//! garment within two lattice steps of each other are skipped: springs hold them, and at rest
+//! they already touch.
 
 use crate::garment::Garment;
 use glam::Vec4;
@@ -170,6 +171,7 @@ impl ParticleCollisions {
         let mut buckets = [usize::MAX; 8];
         let mut seen = 0;
         let mut push = Vec4::ZERO;
+        let mut touching = 0u32;
         for corner in 0..8 {
             let cell: [i32; 3] =
                 // Wrapping: cells only feed the hash, and a particle flung past i32 cells (a
@@ -196,9 +198,12 @@ impl ParticleCollisions {
                 }
                 let wj = inv_mass[j];
                 push += d * ((diameter - distance) / distance * wi / (wi + wj));
+                touching += 1;
             }
         }
-        push
+        // Averaged over the contacts: a particle pressed into a layer overlaps several of its
+        // particles at once, and their summed pushes would throw it past them.
+        push / touching.max(1) as f32
     }
 
     /// True when `i` and `j` are particles of one garment within [`SKIP_STEPS`] lattice steps.
