@@ -3,19 +3,27 @@
 //! garments. `report.json` gives the count per frame beside strain (`crossings`), so a user
 //! sees cloth passing through itself, which no strain or penetration figure shows.
 //!
-//! Triangles that share a vertex touch by construction and are left out; two layers lying
+//! Triangles that share a vertex (or a vertex's place: a mesh split at its seams or flat-shaded
+//! is welded first) touch by construction and are left out; two layers lying
 //! flat on each other without passing through do not count, however close. The pairs are
 //! found through a uniform grid over the triangles' bounding boxes (a cell two mean edges
 //! long), each pair tested once, in the cell holding the low corner of the two boxes' overlap.
 
+use crate::mesh::Weld;
 use glam::Vec3;
 use rayon::prelude::*;
 
 /// The number of pairs of `triangles` (over `positions`) that share no vertex and intersect.
+/// Vertices at one place count as one ([`Weld`]): a surface split at its seams (texture seams,
+/// flat shading) touches across them, which is no crossing.
 pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
     if triangles.len() < 2 {
         return 0;
     }
+    let weld = Weld::of(positions);
+    let welded: Vec<[u32; 3]> = (triangles.iter())
+        .map(|t| t.map(|i| weld.slot[i as usize]))
+        .collect();
     let corners = |t: &[u32; 3]| t.map(|i| positions[i as usize]);
     let boxes: Vec<(Vec3, Vec3)> = triangles
         .iter()
@@ -66,11 +74,11 @@ pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
                     if lo.cmpgt(hi).any() || pack(low[i].max(low[j])) != at {
                         continue;
                     }
-                    let (s, t) = (triangles[i], triangles[j]);
+                    let (s, t) = (welded[i], welded[j]);
                     if s.iter().any(|v| t.contains(v)) {
                         continue;
                     }
-                    if intersect(corners(&s), corners(&t)) {
+                    if intersect(corners(&triangles[i]), corners(&triangles[j])) {
                         crossings += 1;
                     }
                 }
@@ -211,6 +219,34 @@ mod tests {
             })
             .collect();
         assert_eq!(count(&apart, &triangles), 0);
+    }
+
+    /// `triangles` over `positions` flat-shaded: every triangle with its own three vertices.
+    fn unwelded(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let p = triangles
+            .iter()
+            .flatten()
+            .map(|&i| positions[i as usize])
+            .collect();
+        let t = (0..triangles.len() as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        (p, t)
+    }
+
+    #[test]
+    fn a_flat_shaded_copy_counts_as_the_indexed_mesh() {
+        // Split at every edge, neighbours touch across the seams without sharing an index.
+        let (p, t) = sheet(8, Vec3::ZERO, Vec3::X, Vec3::Z, 0);
+        let (fp, ft) = unwelded(&p, &t);
+        assert_eq!(count(&fp, &ft), 0);
+        let (mut p, t) = sheet(6, Vec3::ZERO, Vec3::X, Vec3::Z, 0);
+        for q in p.iter_mut().filter(|q| q.x > 0.5) {
+            let x = q.x - 0.5;
+            *q = Vec3::new(0.5 - 0.9 * x, -0.2 + 0.8 * x, q.z);
+        }
+        let (fp, ft) = unwelded(&p, &t);
+        assert_eq!(count(&fp, &ft), count(&p, &t));
     }
 
     #[test]
