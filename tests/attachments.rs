@@ -252,4 +252,13 @@ fn the_gpu_carries_the_curtain_as_the_cpu_does() {
         on_gpu.driven_energy() > 0.0,
         "the rail's motion counts as supplied energy"
     );
+    // The GPU evaluates the rail's keyframes itself: a frame uploads where it starts (32
+    // bytes), not a target per attached particle and substep, and measures the rail's speed as
+    // the CPU does.
+    assert_eq!(gpu.uploaded_last_frame(), 32, "bytes uploaded per frame");
+    let (a, b) = (cpu.driven_energy(), on_gpu.driven_energy());
+    assert!(
+        (a - b).abs() <= 1e-4 * a,
+        "driven energy {b} J on the GPU, {a} J on the CPU"
+    );
 }

@@ -226,10 +226,11 @@ fn funnels_and_wedges_match() {
 fn moving_and_turned_colliders_match() {
     // A cloth pinned at two corners hit by a sphere thrown at 10 m/s (the swept test relative
     // to the sphere), and a cloth falling onto a turned box that spins: both backends, each
-    // collider's pose uploaded per substep, 24 frames. Until the sphere hits (frame 9) every
+    // collider posed per substep, 24 frames. Until the sphere hits (frame 9) every
     // particle matches; after, the struck cloth flaps over its pins, a chaotic motion in which
     // rounding differences grow tenfold every 3 frames (4 cm by frame 24, measured), so from
-    // then on the cloth's centroid is compared (0.3 mm apart at frame 24, measured).
+    // then on the cloth's centroid is compared (0.3 mm apart at frame 24, measured). The GPU
+    // poses the colliders from their keyframes itself (0.02 mm apart on the turning box).
     let scene = Scene::parse(
         r#"{ "frames": 24, "substeps": 10,
              "garments": [
@@ -288,7 +289,16 @@ fn moving_and_turned_colliders_match() {
     // Both backends put the colliders in the same final pose, and the cloth met both.
     for (a, b) in cpu.drivers.colliders.iter().zip(&on_gpu.drivers.colliders) {
         assert_eq!(a.shape, b.shape);
+        assert_eq!(a.moved, b.moved);
     }
+    // The GPU poses the colliders itself (a frame uploads where it starts, 32 bytes) and
+    // measures their speed as the CPU does.
+    assert_eq!(gpu.uploaded_last_frame(), 32, "bytes uploaded per frame");
+    let (a, b) = (cpu.driven_energy(), on_gpu.driven_energy());
+    assert!(
+        (a - b).abs() <= 1e-4 * a,
+        "driven energy {b} J on the GPU, {a} J on the CPU"
+    );
     assert!(
         centroid(&on_gpu, 0).z > 0.05,
         "the sphere should have pushed the cloth along +Z"

@@ -177,3 +177,25 @@ fn the_skin_kernels_validate_and_match_their_rust_mirrors() {
     assert_eq!(names, BINDINGS, "skin.wgsl's bindings in order");
     assert!(bound.iter().enumerate().all(|(i, (b, _))| *b == i as u32));
 }
+
+#[test]
+fn the_keyframe_kernel_validates_and_matches_its_rust_mirrors() {
+    use drape::gpu::drive::{source, BINDINGS, ENTRY, GROUP_INDEX, MIRRORS};
+    let text = source();
+    let module = naga::front::wgsl::parse_str(&text)
+        .unwrap_or_else(|e| panic!("drive.wgsl:\n{}", e.emit_to_string(&text)));
+    assert_valid_with_entries("drive.wgsl", &module, &[ENTRY]);
+    assert_sizes("drive.wgsl", &module, &MIRRORS);
+    let mut bound: Vec<(u32, &str)> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, v)| {
+            let b = v.binding.as_ref()?;
+            (b.group == GROUP_INDEX).then_some((b.binding, v.name.as_deref()?))
+        })
+        .collect();
+    bound.sort();
+    let names: Vec<&str> = bound.iter().map(|(_, n)| *n).collect();
+    assert_eq!(names, BINDINGS, "drive.wgsl's group-3 bindings in order");
+    assert!(bound.iter().enumerate().all(|(i, (b, _))| *b == i as u32));
+}

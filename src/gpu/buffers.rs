@@ -141,7 +141,7 @@ pub(super) fn bind(
 pub struct StateGroup {
     pub x: wgpu::Buffer,
     pub velocity: wgpu::Buffer,
-    /// The colliders, one pose per substep when some move (refreshed per frame).
+    /// The colliders, one pose per substep when some move (posed per frame by `drive.wgsl`).
     pub colliders: wgpu::Buffer,
     pub moving_colliders: bool,
     /// First uniform slot of the per-substep `attach` ranges and `finish` parameters.
@@ -367,8 +367,9 @@ impl ResidualGroup {
         let forces_work = if sim.forces().is_some() { n } else { 0 };
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            // Positions, velocities, residuals, and the force fields' work per particle.
-            size: (2 * n * 16 + 4 * sweeps_per_frame as usize + 4 * forces_work) as u64,
+            // Positions, velocities, residuals, the force fields' work per particle, and the
+            // keyframed targets' fastest motion.
+            size: (2 * n * 16 + 4 * sweeps_per_frame as usize + 4 * forces_work + 4) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -394,7 +395,7 @@ impl ResidualGroup {
 
 /// Group 2: particle–particle collisions (placeholder buffers when off: the layout is shared),
 /// attachment targets and characters' shells for every substep of a frame (refreshed per
-/// frame).
+/// frame: the keyframed targets by `drive.wgsl`, the rest by the CPU).
 pub struct ContactGroup {
     /// Hash buckets of the particle-collision grid, or None without particle collisions.
     pub contact_table: Option<u32>,

@@ -118,6 +118,8 @@ pub struct Kernels {
     pub field_work_done: wgpu::ComputePipeline,
     /// Characters' shells placed from their skins (scenes with shells only).
     pub skin: Option<super::skin::SkinKernels>,
+    /// Keyframed attachments and colliders posed for every substep of a frame.
+    pub drive: super::drive::DriveKernel,
 }
 
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -272,6 +274,7 @@ impl Kernels {
             field_accelerate: pipeline("field_accelerate"),
             field_work_done: pipeline("field_work_done"),
             skin: shells.then(|| super::skin::SkinKernels::new(device)),
+            drive: super::drive::DriveKernel::new(device),
             group0,
             group1,
             group2,

@@ -6,10 +6,12 @@
 //! - [`kernels`]: every pipeline, built once;
 //! - [`fields`]: force fields' buffers;
 //! - [`skin`]: characters' shells placed from their meshes' vertices;
+//! - [`drive`]: keyframed attachments and colliders posed for every substep;
 //! - [`solver`]: a scene's buffers and the frame loop.
 
 pub mod buffers;
 pub mod context;
+pub mod drive;
 pub mod fields;
 pub mod kernels;
 pub mod layout;

@@ -34,13 +34,18 @@ pub struct GpuSimulation {
     fields: Option<super::fields::FieldGroup>,
     /// Moving characters' shells placed on the GPU from their meshes (None without).
     skin: Option<super::skin::SkinMotion>,
+    /// Keyframed attachments and colliders evaluated on the GPU (None without).
+    keyframes: Option<super::drive::KeyframedMotion>,
+    /// Keyframed attachments, at the head of each substep's targets (the rest ride skins).
+    keyed_attachments: u32,
     /// Which shells `skin` places (the CPU sends no snapshots of them).
     placed_on_gpu: Vec<bool>,
     /// Timestamps between the stages of a frame, when the device has them.
     clock: Option<StageClock>,
     /// Shells that never move are uploaded with the first frame only.
     static_shells_uploaded: bool,
-    /// Bytes written to the GPU for the last frame (attachment targets, shells, collider poses).
+    /// Bytes written to the GPU for the last frame (targets of attachments that ride skins,
+    /// shells, where the frame starts).
     uploaded_last_frame: u64,
     /// Compute dispatches recorded and command buffers submitted for the last frame: the
     /// launch overhead a hardware GPU pays per frame.
@@ -204,6 +209,9 @@ impl GpuSimulation {
         let fields = super::fields::FieldGroup::new(device, &kernels, sim);
         let skin = (kernels.skin.as_ref())
             .and_then(|k| super::skin::SkinMotion::new(device, k, sim, &contact));
+        let keyframes =
+            super::drive::KeyframedMotion::new(device, &kernels.drive, sim, &state, &contact);
+        let keyed_attachments = sim.drivers.attachments.keyframed().len() as u32;
         let placed_on_gpu = if skin.is_some() {
             super::skin::placed_on_gpu(sim)
         } else {
@@ -239,6 +247,8 @@ impl GpuSimulation {
             contact,
             fields,
             skin,
+            keyframes,
+            keyed_attachments,
             placed_on_gpu,
         })
     }
@@ -256,7 +266,7 @@ impl GpuSimulation {
     }
 
     /// Bytes written to the GPU for the last frame: what the CPU computed that the kernels read
-    /// (attachment targets, characters' shells, collider poses).
+    /// (targets of attachments that ride skins, characters' shells, where the frame starts).
     pub fn uploaded_last_frame(&self) -> u64 {
         self.uploaded_last_frame
     }
@@ -308,6 +318,9 @@ impl GpuSimulation {
         if let Some(fields) = &self.fields {
             self.uploaded_last_frame += fields.upload(&self.ctx.queue, self.substeps, first);
         }
+        if let Some(keyframes) = &self.keyframes {
+            self.uploaded_last_frame += keyframes.upload(&self.ctx.queue, first);
+        }
         let encoder = self.record_frame(residuals.is_some());
         let n = self.particles as u64 * 16;
         let mut encoder = encoder;
@@ -327,6 +340,12 @@ impl GpuSimulation {
         if let Some(fields) = &self.fields {
             let size = fields.work.size().min(self.particles as u64 * 4);
             encoder.copy_buffer_to_buffer(&fields.work, 0, &self.residual.readback, work_at, size);
+        }
+        // The keyframed targets' fastest motion, in the readback's last word.
+        let speed_at = self.residual.readback.size() - 4;
+        if let Some(keyframes) = &self.keyframes {
+            let readback = &self.residual.readback;
+            encoder.copy_buffer_to_buffer(&keyframes.speed, 0, readback, speed_at, 4);
         }
         let scope = self
             .ctx
@@ -360,8 +379,14 @@ impl GpuSimulation {
                 r.clear();
                 r.extend(values.iter().map(|&e| e as f64));
             }
+            if self.keyframes.is_some() {
+                let at = speed_at as usize;
+                let speed: f32 = bytemuck::pod_read_unaligned(&view[at..at + 4]);
+                drivers.note_driven_speed(speed);
+            }
             if self.fields.is_some() {
-                let work: &[f32] = bytemuck::cast_slice(&view[work_at as usize..]);
+                let end = work_at as usize + 4 * self.particles as usize;
+                let work: &[f32] = bytemuck::cast_slice(&view[work_at as usize..end]);
                 let work: f64 = work.iter().map(|&w| w as f64).sum();
                 // Negative work is not counted, as on the CPU.
                 *force_work += work.max(0.0);
@@ -442,8 +467,9 @@ impl GpuSimulation {
         Ok(bytes)
     }
 
-    /// Writes what the CPU computed for the frame `driven` describes (attachment targets, the
-    /// shells of every substep where the kernels read them, collider poses); returns the bytes.
+    /// Writes what the CPU computed for the frame `driven` describes (the targets of
+    /// attachments that ride a skin, the shells of every substep where the kernels read them);
+    /// returns the bytes.
     fn upload(&mut self, driven: &crate::sim::DrivenFrame) -> u64 {
         let queue = &self.ctx.queue;
         let mut uploaded = 0u64;
@@ -451,18 +477,18 @@ impl GpuSimulation {
             queue.write_buffer(buffer, offset, bytes);
             uploaded += bytes.len() as u64;
         };
-        if self.contact.attached > 0 {
-            let targets: Vec<Vec4> = driven
-                .attachments
-                .iter()
-                .flatten()
-                .map(|(_, t)| t.extend(0.0))
-                .collect();
-            upload(
-                &self.contact.attach_target,
-                0,
-                bytemuck::cast_slice(&targets),
-            );
+        // The targets that ride a skin, after each substep's keyframed ones (the GPU's).
+        let (attached, keyed) = (self.contact.attached, self.keyed_attachments);
+        if attached > keyed {
+            for (substep, targets) in driven.attachments.iter().enumerate() {
+                let targets: Vec<Vec4> = targets.iter().map(|(_, t)| t.extend(0.0)).collect();
+                let at = 16 * (substep as u64 * attached as u64 + keyed as u64);
+                upload(
+                    &self.contact.attach_target,
+                    at,
+                    bytemuck::cast_slice(&targets),
+                );
+            }
         }
         // Each shell's entries of each substep where the kernels read them; a shell that never
         // moves once, into the first substep's share, with the first frame (the kernels read
@@ -483,15 +509,6 @@ impl GpuSimulation {
             }
         }
         self.static_shells_uploaded = true;
-        if self.state.moving_colliders {
-            let poses: Vec<GpuCollider> = driven
-                .colliders
-                .iter()
-                .flatten()
-                .map(gpu_collider)
-                .collect();
-            upload(&self.state.colliders, 0, bytemuck::cast_slice(&poses));
-        }
         uploaded
     }
 
@@ -512,6 +529,10 @@ impl GpuSimulation {
         }
         if let Some(skin) = &self.skin {
             let recorded = skin.record(&mut encoder);
+            self.dispatches.set(self.dispatches.get() + recorded);
+        }
+        if let Some(keyframes) = &self.keyframes {
+            let recorded = keyframes.record(&mut encoder);
             self.dispatches.set(self.dispatches.get() + recorded);
         }
         let integrating = self.integrating;

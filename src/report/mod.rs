@@ -38,7 +38,8 @@ pub struct Report {
     /// on both.
     pub stages_ms: Vec<StageTiming>,
     /// GPU backend: bytes written to the GPU per frame, on average (what the CPU computes for
-    /// the kernels: attachment targets, characters' shells, collider poses); absent on the CPU.
+    /// the kernels: targets of attachments that ride skins, characters' shells, where the frame
+    /// starts); absent on the CPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_upload_bytes_per_frame: Option<u64>,
     /// GPU backend: compute dispatches and queue submissions per frame, on average (the launch

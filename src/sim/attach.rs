@@ -198,6 +198,7 @@ fn surface_frame(corners: [Vec3; 3], normals: [Vec3; 3], bary: Vec3) -> (Vec3, [
 /// Every attachment of a simulation, with the motions and skins they follow.
 #[derive(Clone, Debug, Default)]
 pub struct Attachments {
+    /// The keyframed attachments first, then those that ride a skin (bound after them).
     pub list: Vec<Attachment>,
     pub tracks: Vec<Track>,
     pub skins: Vec<Skin>,
@@ -257,6 +258,21 @@ impl Attachments {
             }
         }
         out
+    }
+
+    /// The keyframed attachments, which lead [`Attachments::list`]: (particle, track, rest
+    /// position).
+    pub fn keyframed(&self) -> Vec<(u32, usize, Vec3)> {
+        let keyed: Vec<(u32, usize, Vec3)> = (self.list.iter())
+            .map_while(|a| match a.target {
+                Target::Keyframed { track, rest } => Some((a.particle, track, rest)),
+                Target::Surface { .. } => None,
+            })
+            .collect();
+        debug_assert!(self.list[keyed.len()..]
+            .iter()
+            .all(|a| matches!(a.target, Target::Surface { .. })));
+        keyed
     }
 
     /// True when nothing is attached.

@@ -76,13 +76,13 @@ pub struct Focus {
     pub(super) outran: AtomicBool,
 }
 
-/// What drives one frame, substep by substep (see [`Drivers::drive_frame`]).
+/// What drives one frame, substep by substep, that only the CPU can place (see
+/// [`Drivers::drive_frame`]).
 #[derive(Clone, Debug, Default)]
 pub struct DrivenFrame {
-    /// Per substep: each attached particle (storage index) and its target [m].
+    /// Per substep: each attached particle that rides a skin (storage index), and its target
+    /// [m], in [`Attachments::list`]'s order after its keyframed ones.
     pub attachments: Vec<Vec<(u32, Vec3)>>,
-    /// Per substep: every collider in its pose at the end of that substep.
-    pub colliders: Vec<Vec<Collider>>,
     /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`] (None for a shell
     /// that never moves, unless asked for, then with the first substep only: the GPU keeps it
     /// from its first upload; and None for a shell the GPU places itself).
@@ -137,6 +137,11 @@ impl Drivers {
         !self.collider_motion.is_empty()
     }
 
+    /// The keyframed colliders: (index in `colliders`, motion, shape at rest).
+    pub fn collider_motion(&self) -> &[(usize, Track, Shape)] {
+        &self.collider_motion
+    }
+
     /// Puts every attached particle of `state` where its target is at the end of the coming
     /// substep, with the velocity that got it there, and every keyframed collider in its pose
     /// then.
@@ -153,15 +158,24 @@ impl Drivers {
         }
     }
 
-    /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there.
+    /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there
+    /// (counted in the driven speed).
     pub(super) fn pose_colliders(&mut self, t: f32) {
+        self.set_collider_poses(t);
+        for (i, _, _) in &self.collider_motion {
+            let moved = self.colliders[*i].moved.length();
+            self.driven_speed = self.driven_speed.max(moved / self.clock.step);
+        }
+    }
+
+    /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there.
+    fn set_collider_poses(&mut self, t: f32) {
         for (i, track, rest) in &self.collider_motion {
             let (rotation, translation) = track.pose(t);
             let shape = rest.moved(track.pivot, rotation, translation);
             let c = &mut self.colliders[*i];
             c.moved = shape.centre() - c.shape.centre();
             c.shape = shape;
-            self.driven_speed = self.driven_speed.max(c.moved.length() / self.clock.step);
         }
     }
 
@@ -197,10 +211,12 @@ impl Drivers {
         }
     }
 
-    /// Where the attached particles go (storage index, target) and where the colliders are, at
-    /// the end of each substep of the next frame, substep by substep; advances the clock by a
-    /// frame as if it ran, leaving the colliders in their last pose: for a backend that runs
-    /// the frame elsewhere (the GPU) and copies the state back. `static_shells`: include the
+    /// Where the attached particles that ride a skin go (storage index, target) at the end of
+    /// each substep of the next frame, substep by substep; advances the clock by a frame as if
+    /// it ran, leaving the keyframed colliders in their last pose: for a backend that runs the
+    /// frame elsewhere (the GPU) and copies the state back. That backend evaluates the
+    /// keyframed attachments and colliders of each substep itself, and adds their fastest
+    /// motion to the driven speed ([`Drivers::note_driven_speed`]). `static_shells`: include the
     /// shells that never move too, with the first substep (the GPU needs them once). The shells
     /// marked in `placed_elsewhere` (the GPU places them from their skins) have no snapshots:
     /// they are moved over the whole frame at once. `state`: where the attached particles are
@@ -222,7 +238,9 @@ impl Drivers {
         let start = std::time::Instant::now();
         self.advance_shells_over_frame(placed_elsewhere, reach);
         times.lap(schedule::timed("shells"), start);
-        let mut last: Vec<Vec3> = (self.attachments.list.iter())
+        let keyed = self.attachments.keyframed().len();
+        let riding = keyed..self.attachments.list.len();
+        let mut last: Vec<Vec3> = (self.attachments.list[riding.clone()].iter())
             .map(|a| state.positions[a.particle as usize].truncate())
             .collect();
         for substep in 0..self.clock.substeps {
@@ -243,7 +261,7 @@ impl Drivers {
             let t = self.clock.next_time();
             let (step, fps) = (self.clock.step, self.clock.fps);
             frame.attachments.push(
-                (self.attachments.list.iter().zip(&mut last))
+                (self.attachments.list[riding.clone()].iter().zip(&mut last))
                     .map(|(a, last)| {
                         let target = self.attachments.position(a, t, fps);
                         let speed = target.distance(*last) / step;
@@ -253,11 +271,24 @@ impl Drivers {
                     })
                     .collect(),
             );
-            self.pose_colliders(t);
-            frame.colliders.push(self.colliders.clone());
+            if substep + 1 == self.clock.substeps {
+                // The last pose, and the motion of the last substep into it, as the CPU
+                // leaves them (at the bake's start the colliders are at rest); their speed
+                // is the backend's to measure.
+                if self.clock.elapsed > 0 {
+                    self.set_collider_poses(self.clock.time());
+                }
+                self.set_collider_poses(t);
+            }
             self.clock.elapsed += 1;
         }
         frame
+    }
+
+    /// Adds a motion a backend measured elsewhere (keyframed targets on the GPU) to the
+    /// fastest driven motion so far [m/s].
+    pub fn note_driven_speed(&mut self, speed: f32) {
+        self.driven_speed = self.driven_speed.max(speed);
     }
 
     /// Keeps each shell focused on the particles of `state` that can come near the garments:
