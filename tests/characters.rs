@@ -892,3 +892,53 @@ fn fbx_and_collada_copies_give_the_gltf_frames() {
         assert!(worst < 1e-5, "{name}: frames {worst} m from the glTF's");
     }
 }
+
+#[test]
+fn a_flat_shaded_copy_of_a_character_bakes_the_frames_of_its_smooth_original() {
+    // characters/CesiumManFlat (written by characters/flat_shade.py): every triangle of
+    // CesiumMan with three vertices of its own and its face normal. Shells, skin bindings and
+    // the mesh metric weld by position, so the poncho walking on either bakes the same frames,
+    // to the bit, with no garment particle inside either body.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let flat = Asset::open(&root.join("characters/CesiumManFlat/CesiumManFlat.glb")).unwrap();
+    let smooth = Asset::open(&cesium_man()).unwrap();
+    let vertices = |a: &Asset| a.bind_pose().len();
+    assert!(
+        vertices(&flat) > 4 * vertices(&smooth),
+        "the copy is split at every edge ({} vertices, the original {})",
+        vertices(&flat),
+        vertices(&smooth)
+    );
+    let dir = common::temp_dir();
+    let bake = |scene: &str| {
+        let file = root.join("scenes").join(scene);
+        let out = dir.path().join(scene);
+        let args = [
+            "bake",
+            file.to_str().unwrap(),
+            "--frames",
+            "30",
+            "--gltf",
+            "none",
+        ];
+        let run = common::drape(
+            dir.path(),
+            &[&args[..], &["--out", out.to_str().unwrap()]].concat(),
+        );
+        assert!(run.status.success(), "{scene}: {}", common::stderr(&run));
+        let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let (a, b) = (bake("poncho_walk.json"), bake("poncho_walk_flat.json"));
+    assert_eq!(
+        a["frames_hash"], b["frames_hash"],
+        "frames of the flat copy"
+    );
+    for report in [&a, &b] {
+        let worst = report["worst_mesh_penetrations"].as_array().unwrap();
+        assert!(!worst.is_empty());
+        for w in worst {
+            assert_eq!(w["inside"].as_u64(), Some(0), "{w}");
+        }
+    }
+}
