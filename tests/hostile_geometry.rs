@@ -8,28 +8,9 @@
 
 mod common;
 
-use common::parity_inside;
+use common::{cuboid, flat_shaded, parity_inside, prism};
 use drape::collide::mesh::{Surface, Topology, REACH};
 use glam::{Quat, Vec3};
-
-/// A prism over the counter-clockwise polygon `outline` (triangulated as `caps`), from z = 0
-/// to z = `height`, wound counter-clockwise seen from outside.
-fn prism(outline: &[[f32; 2]], caps: &[[u32; 3]], height: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let n = outline.len() as u32;
-    let mut v: Vec<Vec3> = outline.iter().map(|p| Vec3::new(p[0], p[1], 0.0)).collect();
-    v.extend(outline.iter().map(|p| Vec3::new(p[0], p[1], height)));
-    let mut t = Vec::new();
-    for &[a, b, c] in caps {
-        t.push([a, c, b]); // bottom, seen from below
-        t.push([a + n, b + n, c + n]); // top
-    }
-    for i in 0..n {
-        let j = (i + 1) % n;
-        t.push([i, j, j + n]);
-        t.push([i, j + n, i + n]);
-    }
-    (v, t)
-}
 
 /// The L: a 2 × 2 square without its upper right quarter; a fan from its outer corner.
 fn l_prism() -> (Vec<Vec3>, Vec<[u32; 3]>) {
@@ -51,28 +32,6 @@ fn in_l(p: Vec3) -> bool {
     (0.0..0.5).contains(&p.z)
         && ((0.0..2.0).contains(&p.x) && (0.0..1.0).contains(&p.y)
             || (0.0..1.0).contains(&p.x) && (0.0..2.0).contains(&p.y))
-}
-
-/// An axis-aligned box from `lo` to `hi`.
-fn cuboid(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let (v, t) = prism(
-        &[[lo.x, lo.y], [hi.x, lo.y], [hi.x, hi.y], [lo.x, hi.y]],
-        &[[0, 1, 2], [0, 2, 3]],
-        hi.z - lo.z,
-    );
-    (v.into_iter().map(|p| p + Vec3::Z * lo.z).collect(), t)
-}
-
-/// Every triangle with three vertices of its own, as a flat-shaded export writes it.
-fn flat_shaded(v: &[Vec3], t: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let vertices: Vec<Vec3> = t
-        .iter()
-        .flat_map(|tri| tri.map(|i| v[i as usize]))
-        .collect();
-    let triangles = (0..t.len() as u32)
-        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
-        .collect();
-    (vertices, triangles)
 }
 
 /// A grid of probes over `lo`..`hi`, `step` apart, off every face and edge of the cases.

@@ -5,12 +5,15 @@
 //!
 //! Triangles that share a vertex (or a vertex's place: a mesh split at its seams or flat-shaded
 //! is welded first) touch by construction and are left out; two layers lying
-//! flat on each other without passing through do not count, however close. The pairs are
+//! flat on each other without passing through do not count, however close, nor does an edge
+//! that reaches less than [`TOUCH`] (1 µm) beyond the other's plane or meets it within
+//! [`RIM`] of its edges (a touch: in f32, the rows of a flat sheet are coplanar only up to
+//! rounding, where an edge's crossing with a neighbour's plane is noise). The pairs are
 //! found through a uniform grid over the triangles' bounding boxes (a cell two mean edges
 //! long), each pair tested once, in the cell holding the low corner of the two boxes' overlap.
 
 use crate::mesh::Weld;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 /// The number of pairs of `triangles` (over `positions`) that share no vertex and intersect.
@@ -88,46 +91,53 @@ pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
         .sum()
 }
 
-/// True when triangles `s` and `t` intersect: an edge of one passes through the other.
+/// How far both ends of an edge must lie from a triangle's plane, on either side [m], for the
+/// edge to pass through it: nearer is a touch. A flat sheet's rows lie in one plane up to the
+/// rounding of single-precision coordinates (6·10⁻⁸ m near 1 m), where an edge's crossing
+/// point with a neighbour's plane is noise; 1 µm is well above that and far below any real
+/// crossing of cloth.
+pub const TOUCH: f64 = 1e-6;
+
+/// How far inside the triangle the crossing point must be, in each barycentric coordinate: an
+/// edge through another's edge or corner is a touch.
+pub const RIM: f64 = 1e-6;
+
+/// True when triangles `s` and `t` intersect: an edge of one passes through the other, its
+/// ends more than [`TOUCH`] either side of the other's plane and its crossing point more than
+/// [`RIM`] inside the other (in f64).
 pub fn intersect(s: [Vec3; 3], t: [Vec3; 3]) -> bool {
-    // Most pairs near each other lie wholly on one side of the other's plane: no edge can
-    // pass through it then (Möller's first test), and the edge tests are left out.
-    let apart = |s: [Vec3; 3], t: [Vec3; 3]| {
-        let n = (t[1] - t[0]).cross(t[2] - t[0]);
-        let d = s.map(|p| n.dot(p - t[0]));
-        d.iter().all(|&d| d > 0.0) || d.iter().all(|&d| d < 0.0)
-    };
-    if apart(s, t) || apart(t, s) {
-        return false;
-    }
-    let edges_through =
-        |s: [Vec3; 3], t: [Vec3; 3]| (0..3).any(|k| segment_hits(s[k], s[(k + 1) % 3], t));
+    let (s, t) = (s.map(|p| p.as_dvec3()), t.map(|p| p.as_dvec3()));
     edges_through(s, t) || edges_through(t, s)
 }
 
-/// True when the segment `p`–`q` passes through triangle `t` (Möller–Trumbore, ends and
-/// edges included; a segment in the triangle's plane never does).
-fn segment_hits(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> bool {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    if det.abs() <= 1e-12 * e1.length_squared() * d.length_squared().max(1e-30) {
+/// True when an edge of `s` passes through `t` (see [`intersect`]).
+fn edges_through(s: [DVec3; 3], t: [DVec3; 3]) -> bool {
+    let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+    if n == DVec3::ZERO {
         return false;
     }
-    let inv = 1.0 / det;
-    let s = p - a;
-    let u = inv * s.dot(h);
-    if !(0.0..=1.0).contains(&u) {
+    let d = s.map(|p| n.dot(p - t[0]));
+    // Most pairs near each other have no corner beyond the other's plane on one side.
+    if d.iter().all(|&d| d >= -TOUCH) || d.iter().all(|&d| d <= TOUCH) {
         return false;
     }
-    let qv = s.cross(e1);
-    let v = inv * d.dot(qv);
-    if v < 0.0 || u + v > 1.0 {
-        return false;
-    }
-    let along = inv * e2.dot(qv);
-    (0.0..=1.0).contains(&along)
+    (0..3).any(|k| {
+        let (a, b) = (d[k], d[(k + 1) % 3]);
+        let across = (a > TOUCH && b < -TOUCH) || (a < -TOUCH && b > TOUCH);
+        across && inside(t, s[k] + (s[(k + 1) % 3] - s[k]) * (a / (a - b)))
+    })
+}
+
+/// True when point `x` of triangle `t`'s plane lies more than [`RIM`] inside it in each
+/// barycentric coordinate.
+fn inside([a, b, c]: [DVec3; 3], x: DVec3) -> bool {
+    let (e0, e1, e2) = (b - a, c - a, x - a);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (e2.dot(e0), e2.dot(e1));
+    let denom = d00 * d11 - d01 * d01;
+    let v = (d11 * d20 - d01 * d21) / denom;
+    let w = (d00 * d21 - d01 * d20) / denom;
+    v > RIM && w > RIM && 1.0 - v - w > RIM
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@ use glam::Vec3;
 use std::collections::HashMap;
 
 /// Vertices closer than this [m] share a normal (see [`Weld`]).
-const WELD: f32 = 1e-5;
+pub const WELD: f32 = 1e-5;
 
 /// An animated mesh: fixed topology, one position array per frame.
 #[derive(Clone, Debug)]

@@ -164,3 +164,51 @@ pub fn parity_inside(v: &[glam::Vec3], t: &[[u32; 3]], p: glam::Vec3) -> bool {
     }
     hits % 2 == 1
 }
+
+/// A prism over the counter-clockwise polygon `outline` (triangulated as `caps`), from z = 0
+/// to z = `height`, wound counter-clockwise seen from outside.
+pub fn prism(
+    outline: &[[f32; 2]],
+    caps: &[[u32; 3]],
+    height: f32,
+) -> (Vec<glam::Vec3>, Vec<[u32; 3]>) {
+    let n = outline.len() as u32;
+    let mut v: Vec<glam::Vec3> = outline
+        .iter()
+        .map(|p| glam::Vec3::new(p[0], p[1], 0.0))
+        .collect();
+    v.extend(outline.iter().map(|p| glam::Vec3::new(p[0], p[1], height)));
+    let mut t = Vec::new();
+    for &[a, b, c] in caps {
+        t.push([a, c, b]); // bottom, seen from below
+        t.push([a + n, b + n, c + n]); // top
+    }
+    for i in 0..n {
+        let j = (i + 1) % n;
+        t.push([i, j, j + n]);
+        t.push([i, j + n, i + n]);
+    }
+    (v, t)
+}
+
+/// An axis-aligned box from `lo` to `hi`.
+pub fn cuboid(lo: glam::Vec3, hi: glam::Vec3) -> (Vec<glam::Vec3>, Vec<[u32; 3]>) {
+    let (v, t) = prism(
+        &[[lo.x, lo.y], [hi.x, lo.y], [hi.x, hi.y], [lo.x, hi.y]],
+        &[[0, 1, 2], [0, 2, 3]],
+        hi.z - lo.z,
+    );
+    (v.into_iter().map(|p| p + glam::Vec3::Z * lo.z).collect(), t)
+}
+
+/// Every triangle with three vertices of its own, as a flat-shaded export writes it.
+pub fn flat_shaded(v: &[glam::Vec3], t: &[[u32; 3]]) -> (Vec<glam::Vec3>, Vec<[u32; 3]>) {
+    let vertices: Vec<glam::Vec3> = t
+        .iter()
+        .flat_map(|tri| tri.map(|i| v[i as usize]))
+        .collect();
+    let triangles = (0..t.len() as u32)
+        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+        .collect();
+    (vertices, triangles)
+}
