@@ -942,3 +942,33 @@ fn a_flat_shaded_copy_of_a_character_bakes_the_frames_of_its_smooth_original() {
         }
     }
 }
+
+#[test]
+fn the_gpu_uploads_a_flat_shaded_character_as_its_smooth_original() {
+    // The GPU holds one position per weld slot when a slot's vertices share their bits in
+    // every frame: the flat copy's 14 016 vertices go up as the original's 2 338 places, the
+    // same bytes per frame, and the shells placed from them give the same cloth.
+    let Some(ctx) = common::gpu_context() else {
+        return;
+    };
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = common::temp_dir();
+    let run = |scene: &str| {
+        let mut scene = drape::scene::Scene::load(&root.join("scenes").join(scene)).unwrap();
+        scene.frames = 4;
+        let mut sim = common::simulation(&scene, dir.path());
+        let mut gpu = drape::gpu::GpuSimulation::new(ctx.clone(), &sim).expect("GPU simulation");
+        let mut uploaded = Vec::new();
+        for _ in 0..scene.frames {
+            gpu.step_frame(sim.frame_parts()).expect("GPU frame");
+            uploaded.push(gpu.uploaded_last_frame());
+        }
+        (sim.export_positions(), uploaded)
+    };
+    let (smooth, smooth_bytes) = run("poncho_walk.json");
+    let (flat, flat_bytes) = run("poncho_walk_flat.json");
+    assert_eq!(flat_bytes, smooth_bytes, "bytes uploaded per frame");
+    assert_eq!(flat, smooth, "the cloth on the flat copy");
+    // One character frame of 2 338 places a frame after the first, and the substeps' times.
+    assert!(smooth_bytes[3] < 3273 * 16, "{smooth_bytes:?}");
+}

@@ -2,9 +2,11 @@
 //! keeps its topology has a [`Skin`](crate::collide::skin::Skin), each shell particle bound to a
 //! triangle. The GPU keeps the binding, the mesh's triangles and welding, and a window of two
 //! character frames' vertices; each frame uploads only the character frames it reaches that the
-//! window lacks (usually one: P's mannequin, 5 040 vertices, 81 KB, against 18.7 MB of shell
-//! particles and grids at every substep before), and a few words per substep saying where it
-//! starts and ends. One compute pass then sums the frames' smooth normals, places every
+//! window lacks (usually one), and a few words per substep saying where it starts and ends. A
+//! mesh whose vertices at one place (flat shading, UV seams) share their bits in every frame
+//! goes up one position per weld slot (P's mannequin: 31 KB a frame on average over 30 frames,
+//! 100 KB per vertex; a flat-shaded CesiumMan as little as the smooth one, 39 KB, not 232 KB),
+//! against 18.7 MB of shell particles and grids at every substep before the GPU placed them. One compute pass then sums the frames' smooth normals, places every
 //! substep's shell particles and builds its grid, before the frame's simulation pass reads
 //! them: no CPU work per substep.
 
@@ -176,6 +178,9 @@ pub struct SkinMotion {
     window: wgpu::Buffer,
     /// Per resident shell: its index among the simulation's shells and its GPU record.
     resident: Vec<(usize, GpuSkinInfo)>,
+    /// Per resident shell, the vertex uploaded for each weld slot when the window holds one
+    /// position per slot ([`slot_vertices`]), or None when it holds every vertex.
+    gathered: Vec<Option<Vec<u32>>>,
     /// Per resident shell, the character frame in each window slot.
     held: Vec<[Option<usize>; SLOTS]>,
     substeps: u32,
@@ -192,6 +197,29 @@ pub fn placed_on_gpu(sim: &Simulation) -> Vec<bool> {
             !s.is_static() && bound == Some(s.most_particles())
         })
         .collect()
+}
+
+/// Each weld slot's first vertex, when the GPU can hold one position per slot instead of one
+/// per vertex: the mesh has vertices at one place (flat-shaded, split at UV seams) and those
+/// sit at the same bits in every frame (skinned alike), so the shell and its normals come out
+/// the same. None when no slot holds two vertices or some slot's vertices part in a frame.
+fn slot_vertices(skin: &crate::collide::skin::Skin) -> Option<Vec<u32>> {
+    let weld = &skin.weld;
+    if weld.slots == skin.vertex_count() {
+        return None;
+    }
+    let mut first = vec![u32::MAX; weld.slots];
+    for (v, &slot) in weld.slot.iter().enumerate() {
+        if first[slot as usize] == u32::MAX {
+            first[slot as usize] = v as u32;
+        }
+    }
+    let bits = |p: glam::Vec3| p.to_array().map(f32::to_bits);
+    let together = (skin.vertices.iter()).all(|frame| {
+        (weld.slot.iter().enumerate())
+            .all(|(v, &slot)| bits(frame[v]) == bits(frame[first[slot as usize] as usize]))
+    });
+    together.then_some(first)
 }
 
 /// The frames before and after fractional frame `f` of a shell with frames 0…`last`, and the
@@ -221,14 +249,16 @@ impl SkinMotion {
         let mut resident = Vec::new();
         let (mut bound, mut window, mut cursor) = (0u32, 0u32, 0u32);
         let (mut corners, mut barycentric) = (Vec::new(), Vec::new());
+        let mut gathered = Vec::new();
         let mut mesh = Mesh::default();
         for (i, on) in placed_on_gpu(sim).into_iter().enumerate() {
             let (Some(skin), true) = (&sim.drivers.shells[i].skin, on) else {
                 continue;
             };
             let shell = contact.shells[i];
-            let vertices = skin.vertex_count() as u32;
-            let at = mesh.add(skin);
+            let welded = slot_vertices(skin);
+            let vertices = welded.as_ref().map_or(skin.vertex_count(), Vec::len) as u32;
+            let at = mesh.add(skin, welded.is_some());
             resident.push((
                 i,
                 GpuSkinInfo {
@@ -250,7 +280,14 @@ impl SkinMotion {
                     pad: 0,
                 },
             ));
-            corners.extend(skin.corners());
+            let slot = |v: u32| skin.weld.slot[v as usize];
+            corners.extend(
+                (skin.corners().into_iter()).map(|[a, b, c, d]| match welded {
+                    Some(_) => [slot(a), slot(b), slot(c), d],
+                    None => [a, b, c, d],
+                }),
+            );
+            gathered.push(welded);
             barycentric.extend_from_slice(&skin.barycentric);
             bound += shell.count;
             window += SLOTS as u32 * vertices;
@@ -334,6 +371,7 @@ impl SkinMotion {
         });
         Some(SkinMotion {
             group,
+            gathered,
             pipelines: kernels.pipelines.clone(),
             times,
             window,
@@ -365,8 +403,13 @@ impl SkinMotion {
                 let mut slot = |frame: usize| {
                     let at = frame % SLOTS;
                     if self.held[r][at] != Some(frame) {
-                        let bytes: Vec<glam::Vec4> =
-                            skin.vertices[frame].iter().map(|v| v.extend(0.0)).collect();
+                        let positions = &skin.vertices[frame];
+                        let bytes: Vec<glam::Vec4> = match &self.gathered[r] {
+                            Some(first) => (first.iter())
+                                .map(|&v| positions[v as usize].extend(0.0))
+                                .collect(),
+                            None => positions.iter().map(|v| v.extend(0.0)).collect(),
+                        };
                         let offset = 16 * (info.window + at as u32 * info.vertices) as u64;
                         queue.write_buffer(&self.window, offset, bytemuck::cast_slice(&bytes));
                         uploaded += 16 * bytes.len() as u64;
@@ -454,7 +497,9 @@ struct MeshAt {
 }
 
 impl Mesh {
-    fn add(&mut self, skin: &crate::collide::skin::Skin) -> MeshAt {
+    /// Adds `skin`'s mesh; `by_slot`: over one vertex per weld slot ([`slot_vertices`]), its
+    /// triangles' corners given as slots, each slot its own.
+    fn add(&mut self, skin: &crate::collide::skin::Skin, by_slot: bool) -> MeshAt {
         let at = MeshAt {
             triangles: self.triangles.len() as u32,
             vertex: self.vertex_slot.len() as u32,
@@ -462,10 +507,23 @@ impl Mesh {
             faces: self.slot_faces.len() as u32,
             normals: self.normals,
         };
+        // Each slot's triangles, in triangle order, once per corner there: the same lists
+        // either way.
         let (start, faces) = skin.weld.slot_faces(&skin.triangles);
+        let slot = |v: u32| skin.weld.slot[v as usize];
         self.triangles
-            .extend(skin.triangles.iter().map(|&[a, b, c]| [a, b, c, 0]));
-        self.vertex_slot.extend_from_slice(&skin.weld.slot);
+            .extend(skin.triangles.iter().map(|&[a, b, c]| {
+                if by_slot {
+                    [slot(a), slot(b), slot(c), 0]
+                } else {
+                    [a, b, c, 0]
+                }
+            }));
+        if by_slot {
+            self.vertex_slot.extend(0..skin.weld.slots as u32);
+        } else {
+            self.vertex_slot.extend_from_slice(&skin.weld.slot);
+        }
         self.slot_start.extend(start);
         self.slot_faces.extend(faces);
         self.normals += SLOTS as u32 * skin.weld.slots as u32;
