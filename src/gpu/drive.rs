@@ -119,21 +119,7 @@ pub struct DriveKernel {
 
 impl DriveKernel {
     pub fn new(device: &wgpu::Device) -> DriveKernel {
-        let entry = |binding: u32| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: match binding {
-                    0 => wgpu::BufferBindingType::Uniform,
-                    1..=LAST_READ_ONLY => wgpu::BufferBindingType::Storage { read_only: true },
-                    _ => wgpu::BufferBindingType::Storage { read_only: false },
-                },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let entries: Vec<_> = (0..BINDINGS.len() as u32).map(entry).collect();
+        let entries = super::kernels::own_group_entries(BINDINGS.len() as u32, LAST_READ_ONLY);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("drape keyframes"),
             entries: &entries,

@@ -122,6 +122,30 @@ pub struct Kernels {
     pub drive: super::drive::DriveKernel,
 }
 
+/// The layout entries of a kernel file compiled with a bind group of its own (`skin.wgsl`,
+/// `drive.wgsl`): `count` bindings, 0 a uniform, 1 to `last_read_only` read-only storage, the
+/// rest read-write storage.
+pub fn own_group_entries(count: u32, last_read_only: u32) -> Vec<wgpu::BindGroupLayoutEntry> {
+    (0..count)
+        .map(|binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: match binding {
+                    0 => wgpu::BufferBindingType::Uniform,
+                    b if b <= last_read_only => {
+                        wgpu::BufferBindingType::Storage { read_only: true }
+                    }
+                    _ => wgpu::BufferBindingType::Storage { read_only: false },
+                },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect()
+}
+
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
