@@ -334,14 +334,7 @@ fn uv_sphere(segments: usize, split: bool) -> (Vec<glam::Vec3>, Vec<[u32; 3]>) {
     if !split {
         return (vertices, triangles);
     }
-    let corners: Vec<glam::Vec3> = triangles
-        .iter()
-        .flat_map(|t| t.map(|k| vertices[k as usize]))
-        .collect();
-    let faces = (0..triangles.len() as u32)
-        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
-        .collect();
-    (corners, faces)
+    common::flat_shaded(&vertices, &triangles)
 }
 
 #[test]
@@ -720,13 +713,7 @@ fn a_flat_shaded_character_is_measured_as_its_smooth_original() {
     let rest = clip(&Asset::open(&cesium_man()).unwrap(), &cesium_man(), None, 1);
     let (v, t) = (rest.frame(0), rest.triangles_of(0));
     // The same frame flat-shaded: three vertices of its own per triangle.
-    let fv: Vec<Vec3> = t
-        .iter()
-        .flat_map(|tri| tri.map(|i| v[i as usize]))
-        .collect();
-    let ft: Vec<[u32; 3]> = (0..t.len() as u32)
-        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
-        .collect();
+    let (fv, ft) = common::flat_shaded(v, t);
     // Probes in and out along each 7th triangle's normal, 2 mm to 3 cm from its centroid.
     let mut points = Vec::new();
     for tri in t.iter().step_by(7) {

@@ -105,8 +105,8 @@ struct Case {
     frames: Vec<(Vec<Vec3>, Vec<[u32; 3]>)>,
     /// True when the point is inside the solid at the frame (index from 0).
     inside: fn(Vec3, usize) -> bool,
-    /// The sheet's JSON (a garment) and the scene's frames.
-    sheet: &'static str,
+    /// Where the sheet's centre starts (x, height [m]), and the frames baked.
+    sheet: [f32; 2],
     baked: u32,
 }
 
@@ -137,7 +137,8 @@ fn bake_and_check(case: &Case) -> (usize, usize) {
              "particle_collisions": true,
              "garments": [{}],
              "characters": [{{ "name": "solid", {file}, "scale": 1 }}] }}"#,
-        case.baked, case.sheet
+        case.baked,
+        sheet(case.sheet)
     );
     common::write(dir.path(), "scene.json", &scene);
     let report = common::bake_report(dir.path());
@@ -172,9 +173,13 @@ fn bake_and_check(case: &Case) -> (usize, usize) {
     (most_crossings, most_inside)
 }
 
-/// A 20 × 20 sheet 0.5 m wide, flat at 0.3 m, centred over the origin.
-const SHEET: &str = r#"{ "name": "cloth", "resolution": [20, 20], "size": [0.5, 0.5], "position": [0, 0.3, 0],
-                         "stiffness": { "stretch": 10000, "bend": 5 } }"#;
+/// A 20 × 20 sheet 0.5 m wide, flat, centred at x = `x`, z = 0, at `height`.
+fn sheet([x, height]: [f32; 2]) -> String {
+    format!(
+        r#"{{ "name": "cloth", "resolution": [20, 20], "size": [0.5, 0.5], "position": [{x}, {height}, 0],
+              "stiffness": {{ "stretch": 10000, "bend": 5 }} }}"#
+    )
+}
 
 fn inside_box(p: Vec3, lo: Vec3, hi: Vec3) -> bool {
     p.cmpgt(lo).all() && p.cmplt(hi).all()
@@ -188,7 +193,7 @@ fn a_sheet_folds_round_a_one_centimetre_plate() {
         name: "1 cm plate",
         frames: vec![(v, t)],
         inside: plate,
-        sheet: SHEET,
+        sheet: [0.0, 0.3],
         baked: 40,
     };
     bake_and_check(&case);
@@ -222,8 +227,7 @@ fn a_sheet_drops_into_the_reflex_corner_of_a_flat_shaded_l() {
         name: "flat-shaded L",
         frames: vec![l_block()],
         inside,
-        sheet: r#"{ "name": "cloth", "resolution": [20, 20], "size": [0.5, 0.5], "position": [0.05, 0.5, 0],
-                    "stiffness": { "stretch": 10000, "bend": 5 } }"#,
+        sheet: [0.05, 0.5],
         baked: 50,
     };
     bake_and_check(&case);
@@ -247,8 +251,7 @@ fn a_sheet_drapes_a_box_without_a_bottom() {
             let walls = (p.x - lo.x).min(hi.x - p.x).min(p.z - lo.z).min(hi.z - p.z);
             inside_box(p, lo, hi) && walls.min(hi.y - p.y) < REACH
         },
-        sheet: r#"{ "name": "cloth", "resolution": [20, 20], "size": [0.5, 0.5], "position": [0, 0.35, 0],
-                    "stiffness": { "stretch": 10000, "bend": 5 } }"#,
+        sheet: [0.0, 0.35],
         baked: 50,
     };
     bake_and_check(&case);
@@ -269,8 +272,7 @@ fn a_sheet_drapes_two_cubes_meeting_along_an_edge() {
         name: "two cubes on an edge",
         frames: vec![(v, t)],
         inside,
-        sheet: r#"{ "name": "cloth", "resolution": [20, 20], "size": [0.5, 0.5], "position": [0, 0.5, 0],
-                    "stiffness": { "stretch": 10000, "bend": 5 } }"#,
+        sheet: [0.0, 0.5],
         baked: 50,
     };
     bake_and_check(&case);
@@ -305,7 +307,7 @@ fn a_slab_rising_two_shell_radii_a_substep_lifts_the_sheet_without_passing_it() 
             let (lo, hi) = slab(k);
             inside_box(p, lo, hi)
         },
-        sheet: SHEET,
+        sheet: [0.0, 0.3],
         baked: 30,
     };
     bake_and_check(&case);

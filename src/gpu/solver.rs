@@ -211,7 +211,7 @@ impl GpuSimulation {
             .and_then(|k| super::skin::SkinMotion::new(device, k, sim, &contact));
         let keyframes =
             super::drive::KeyframedMotion::new(device, &kernels.drive, sim, &state, &contact);
-        let keyed_attachments = sim.drivers.attachments.keyframed().len() as u32;
+        let keyed_attachments = sim.drivers.attachments.keyframed_count() as u32;
         let placed_on_gpu = if skin.is_some() {
             super::skin::placed_on_gpu(sim)
         } else {

@@ -263,13 +263,20 @@ impl Attachments {
     /// The keyframed attachments, which lead [`Attachments::list`]: (particle, track, rest
     /// position).
     pub fn keyframed(&self) -> Vec<(u32, usize, Vec3)> {
-        let keyed: Vec<(u32, usize, Vec3)> = (self.list.iter())
-            .map_while(|a| match a.target {
+        (self.list[..self.keyframed_count()].iter())
+            .filter_map(|a| match a.target {
                 Target::Keyframed { track, rest } => Some((a.particle, track, rest)),
                 Target::Surface { .. } => None,
             })
-            .collect();
-        debug_assert!(self.list[keyed.len()..]
+            .collect()
+    }
+
+    /// How many keyframed attachments lead [`Attachments::list`] (the rest ride skins).
+    pub fn keyframed_count(&self) -> usize {
+        let keyed = (self.list.iter())
+            .take_while(|a| matches!(a.target, Target::Keyframed { .. }))
+            .count();
+        debug_assert!(self.list[keyed..]
             .iter()
             .all(|a| matches!(a.target, Target::Surface { .. })));
         keyed

@@ -238,7 +238,7 @@ impl Drivers {
         let start = std::time::Instant::now();
         self.advance_shells_over_frame(placed_elsewhere, reach);
         times.lap(schedule::timed("shells"), start);
-        let keyed = self.attachments.keyframed().len();
+        let keyed = self.attachments.keyframed_count();
         let riding = keyed..self.attachments.list.len();
         let mut last: Vec<Vec3> = (self.attachments.list[riding.clone()].iter())
             .map(|a| state.positions[a.particle as usize].truncate())
