@@ -7,7 +7,7 @@
 // (Jacobi).
 // `finish` adds the push to Δ.
 
-const SKIP_STEPS: i32 = 2;
+const SKIP_STEPS: i32 = 1;
 
 fn pc_cell_of(q: vec4<f32>) -> vec3<i32> {
     return vec3<i32>(floor(q.xyz * contacts.inv_cell));
@@ -117,6 +117,14 @@ fn pc_joined(i: u32, j: u32) -> bool {
 }
 
 // The push of particle i out of the particles it overlaps (ParticleCollisions::push_out).
+// The direction two overlapping particles are pushed apart along: their separation at the
+// substep's start (`before`, when they did not overlap in the same place), so a particle the
+// solve carried through another goes back to the side it came from; else the separation now.
+fn pc_apart(before: vec4<f32>, now: vec4<f32>, distance: f32) -> vec4<f32> {
+    let start = length(before);
+    return select(now / distance, before / start, start > 1e-9);
+}
+
 @compute @workgroup_size(64)
 fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -161,8 +169,14 @@ fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
             if (distance >= contacts.diameter || distance < 1e-9) {
                 continue;
             }
+            // Pushed apart along their separation at the substep's start (pc_apart says why).
+            let along = pc_apart(x[i] - x[j], d, distance);
+            let gap = contacts.diameter - dot(d, along);
+            if (gap <= 0.0) {
+                continue;
+            }
             let wj = particle[j].inv_mass;
-            push = push + d * ((contacts.diameter - distance) / distance * wi / (wi + wj));
+            push = push + along * (gap * wi / (wi + wj));
             touching = touching + 1u;
         }
     }

@@ -110,6 +110,9 @@ fn peers(root: &Path, options: &Options) -> Result<Vec<Peer>> {
         }
         let path = root.join("scenes").join(file);
         let mut scene = Scene::load(&path)?;
+        // Blender's cloth runs without self-collision (`blender_cloth.py`): drape too, so both
+        // tools bake the same model.
+        scene.particle_collisions = false;
         if let Some(frames) = options.frames {
             scene.frames = frames;
         }

@@ -6,9 +6,13 @@
 //! passes over the particles), and each particle is pushed out of every other particle closer
 //! than one diameter: a Jacobi pass, each particle moving by the mean of its pushes (each its
 //! share of one overlap by inverse mass, so pinned particles stay), all corrections computed
-//! from the same q, so the result does not depend on the order or the thread count. Pairs of one
-//! garment within two lattice steps of each other are skipped: springs hold them, and at rest
-//! they already touch.
+//! from the same q, so the result does not depend on the order or the thread count. A pair is
+//! pushed apart along its separation at the substep's start (x), not its separation in q, so a
+//! particle carried through a layer in the solve goes back to its own side instead of on through.
+//! Pairs of one garment that are lattice neighbours (one step apart on every axis at most) are
+//! skipped: springs hold them, and at rest they already touch. Particles two steps apart are
+//! two diameters apart at rest, so they collide only where the cloth folds onto itself, which
+//! keeps a tight fold from closing through itself.
 
 use crate::garment::Garment;
 use glam::Vec4;
@@ -39,7 +43,7 @@ pub struct Grid {
 
 /// Lattice steps within which two particles of one garment never collide (`particles.wgsl`
 /// has the same, checked by `tests/shaders.rs`).
-pub const SKIP_STEPS: i32 = 2;
+pub const SKIP_STEPS: i32 = 1;
 
 impl ParticleCollisions {
     /// Collisions between every particle of `garments` at `radius`; `storage_of`: the storage
@@ -142,10 +146,13 @@ impl ParticleCollisions {
     }
 
     /// The displacement that moves particle `i` out of the particles it overlaps, from positions
-    /// `q` sorted into `grid`; zero for a pinned particle.
+    /// `q` sorted into `grid` and the substep's start positions `x`; zero for a pinned particle.
+    /// Each overlap pushes along the pair's separation at the start ([`apart`]) until the two are
+    /// a diameter apart along it.
     pub fn push_out(
         &self,
         i: usize,
+        x: impl Fn(usize) -> Vec4,
         q: impl Fn(usize) -> Vec4,
         inv_mass: &[f32],
         grid: &Grid,
@@ -154,7 +161,7 @@ impl ParticleCollisions {
         if wi == 0.0 {
             return Vec4::ZERO;
         }
-        let qi = q(i);
+        let (xi, qi) = (x(i), q(i));
         // Cells are one diameter wide, so every particle closer than a diameter lies in the 2 × 2 × 2
         // block of cells on the sides of the cell that `qi` is nearest to.
         let s = self.inv_cell();
@@ -196,8 +203,13 @@ impl ParticleCollisions {
                 if distance >= diameter || distance < 1e-9 {
                     continue;
                 }
+                let along = apart(xi - x(j), d, distance);
+                let gap = diameter - d.dot(along);
+                if gap <= 0.0 {
+                    continue;
+                }
                 let wj = inv_mass[j];
-                push += d * ((diameter - distance) / distance * wi / (wi + wj));
+                push += along * (gap * wi / (wi + wj));
                 touching += 1;
             }
         }
@@ -211,5 +223,72 @@ impl ParticleCollisions {
     fn joined(&self, i: usize, j: usize) -> bool {
         self.garment[i] == self.garment[j]
             && (0..3).all(|a| (self.cell[i][a] - self.cell[j][a]).abs() <= SKIP_STEPS)
+    }
+}
+
+/// The direction two overlapping particles are pushed apart along: their separation `before`, at
+/// the substep's start, when they were not in one place; else their separation `now` (of length
+/// `distance`). Cloth that starts a substep on one side of another layer and is carried through
+/// it by the solve is pushed back to the side it came from, where the separation now would push
+/// it on through (`particles.wgsl`'s `pc_apart` is the same).
+#[inline]
+fn apart(before: Vec4, now: Vec4, distance: f32) -> Vec4 {
+    let start = before.length();
+    if start > 1e-9 {
+        before / start
+    } else {
+        now / distance
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two free particles of different garments at positions `q`, having started the substep at
+    /// `x`: each one's push.
+    fn pushes(x: [Vec4; 2], q: [Vec4; 2]) -> [Vec4; 2] {
+        let pc = ParticleCollisions {
+            radius: 0.01,
+            garment: vec![0, 1],
+            cell: vec![[0; 3]; 2],
+            table: 16,
+        };
+        let mut grid = pc.grid();
+        pc.build(|i| q[i], &mut grid);
+        let inv_mass = [1.0, 1.0];
+        [0, 1].map(|i| pc.push_out(i, |k| x[k], |k| q[k], &inv_mass, &grid))
+    }
+
+    #[test]
+    fn a_particle_carried_through_another_goes_back_to_its_own_side() {
+        // Particle 0 started 3 cm above particle 1 and the solve carried it to 5 mm below: the
+        // pair ends a diameter (2 cm) apart with 0 above, as it started.
+        let x = [Vec4::new(0.0, 0.03, 0.0, 0.0), Vec4::ZERO];
+        let q = [Vec4::new(0.0, -0.005, 0.0, 0.0), Vec4::ZERO];
+        let p = pushes(x, q);
+        let apart = (q[0] + p[0]) - (q[1] + p[1]);
+        assert!(
+            (apart - Vec4::new(0.0, 0.02, 0.0, 0.0)).length() < 1e-6,
+            "{apart}"
+        );
+    }
+
+    #[test]
+    fn an_overlap_without_a_crossing_is_pushed_apart_along_the_start_separation() {
+        // Closing along x at a slant: they end a diameter apart along where they came from,
+        // each moving half of the overlap.
+        let x = [Vec4::new(0.05, 0.0, 0.0, 0.0), Vec4::ZERO];
+        let q = [Vec4::new(0.012, 0.004, 0.0, 0.0), Vec4::ZERO];
+        let p = pushes(x, q);
+        assert!(
+            (p[0] - Vec4::new(0.004, 0.0, 0.0, 0.0)).length() < 1e-6,
+            "{}",
+            p[0]
+        );
+        assert!((p[1] + p[0]).length() < 1e-6, "{}", p[1]);
+        // Apart and clear along the start separation: no push.
+        let q = [Vec4::new(0.021, 0.0, 0.0, 0.0), Vec4::ZERO];
+        assert_eq!(pushes(x, q), [Vec4::ZERO; 2]);
     }
 }

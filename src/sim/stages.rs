@@ -109,7 +109,7 @@ impl Stages<'_> {
         let pushes = self.pushes.expect("particle collisions have pushes");
         for i in m.particles(&model.colour_ranges) {
             // SAFETY: each particle's push is written by its own thread.
-            unsafe { pushes.set(i, pc.push_out(i, q, &model.inv_mass, &g)) };
+            unsafe { pushes.set(i, pc.push_out(i, |k| x[k], q, &model.inv_mass, &g)) };
         }
         drop(g);
         m.sync();
