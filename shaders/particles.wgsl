@@ -116,7 +116,6 @@ fn pc_joined(i: u32, j: u32) -> bool {
     return a.w == b.w && d.x <= SKIP_STEPS && d.y <= SKIP_STEPS && d.z <= SKIP_STEPS;
 }
 
-// The push of particle i out of the particles it overlaps (ParticleCollisions::push_out).
 // The direction two overlapping particles are pushed apart along: their separation at the
 // substep's start (`before`, when they did not overlap in the same place), so a particle the
 // solve carried through another goes back to the side it came from; else the separation now.
@@ -125,6 +124,7 @@ fn pc_apart(before: vec4<f32>, now: vec4<f32>, distance: f32) -> vec4<f32> {
     return select(now / distance, before / start, start > 1e-9);
 }
 
+// The push of particle i out of the particles it overlaps (ParticleCollisions::push_out).
 @compute @workgroup_size(64)
 fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -169,14 +169,11 @@ fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
             if (distance >= contacts.diameter || distance < 1e-9) {
                 continue;
             }
-            // Pushed apart along their separation at the substep's start (pc_apart says why).
+            // Pushed apart along their separation at the substep's start (pc_apart says why) until
+            // a diameter apart along it (never less than the overlap: the projection is shorter).
             let along = pc_apart(x[i] - x[j], d, distance);
-            let gap = contacts.diameter - dot(d, along);
-            if (gap <= 0.0) {
-                continue;
-            }
             let wj = particle[j].inv_mass;
-            push = push + along * (gap * wi / (wi + wj));
+            push = push + along * ((contacts.diameter - dot(d, along)) * wi / (wi + wj));
             touching = touching + 1u;
         }
     }
