@@ -6,7 +6,8 @@ skirt.obj:        an open elliptic cone frustum, waist 0.68 x 0.28 m, hem 0.90 m
                   long (a thin sheet: drape voxelizes its surface only).
 cesium_skirt.obj: an A-line skirt modelled on CesiumMan's bind pose: an elliptic surface of
                   revolution from his waist to his knees, every ring clear of the body by at
-                  least CLEARANCE (read from the character's own bind-pose vertices).
+                  least CLEARANCE (read from the character's own bind-pose vertices) but the
+                  waistband, which follows the body 1.2 cm off it.
 cesium_cape.obj:  a cape down CesiumMan's bind-pose back, from his shoulders to his thighs.
 cesium_top.obj:   a top with two sleeves modelled on CesiumMan's bind pose (arms out and down):
                   his own torso and upper arms pushed out along their normals by CLEARANCE.
@@ -135,26 +136,49 @@ def glb_bind_pose(path):
     return vertices, triangles
 
 
-def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13):
+def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13, band=0.012, band_rows=2):
     """An A-line skirt from CesiumMan's waist to his knees: each ring an ellipse about the
     torso's centre whose radii grow linearly by `flare` from the waist's, and never come
     closer than CLEARANCE to the body's cross-section at that ring's height (the bind-pose
     triangles cut by the ring's plane within |x| < 0.16 m: the torso and the legs; in the bind
-    pose the arms reach down beside the hips further out)."""
+    pose the arms reach down beside the hips further out). The waistband follows the body
+    instead: the top ring lies `band` outside the cross-section along each ring direction (as
+    a waistband sits on the body), and the next `band_rows` rows ease into the ellipses."""
     body, triangles = glb_bind_pose(CESIUM)
 
-    def extent(y):
-        cut = []
+    def cut(y):
+        segments_at = []
         for t in triangles:
             p = [body[i] for i in t]
+            crossing = []
             for a, b in ((p[0], p[1]), (p[1], p[2]), (p[2], p[0])):
                 if (a[1] - y) * (b[1] - y) < 0.0:
                     w = (y - a[1]) / (b[1] - a[1])
-                    x, z = a[0] + w * (b[0] - a[0]), a[2] + w * (b[2] - a[2])
-                    if abs(x) < 0.16:
-                        cut.append((x, z))
-        xs, zs = [c[0] for c in cut], [c[1] for c in cut]
+                    crossing.append((a[0] + w * (b[0] - a[0]), a[2] + w * (b[2] - a[2])))
+            if len(crossing) == 2 and all(abs(c[0]) < 0.16 for c in crossing):
+                segments_at.append(crossing)
+        return segments_at
+
+    def extent(y):
+        points = [c for s in cut(y) for c in s]
+        xs, zs = [c[0] for c in points], [c[1] for c in points]
         return (max(-min(xs), max(xs)), 0.5 * (max(zs) - min(zs)), 0.5 * (max(zs) + min(zs)))
+
+    def reach(y, centre, phi):
+        """How far the cross-section at `y` reaches from (0, centre) along the ring direction
+        `phi`: the farthest crossing of that ray with the cut."""
+        dx, dz = math.cos(phi), -math.sin(phi)
+        farthest = 0.0
+        for (ax, az), (bx, bz) in cut(y):
+            az, bz = az - centre, bz - centre
+            ex, ez = bx - ax, bz - az
+            den = dx * ez - dz * ex
+            if abs(den) < 1e-12:
+                continue
+            t, u = (ax * ez - az * ex) / den, (ax * dz - az * dx) / den
+            if t > 0.0 and 0.0 <= u <= 1.0:
+                farthest = max(farthest, t)
+        return farthest
 
     wx, wz, centre = extent(waist_y)
     vertices, uvs = [], []
@@ -166,11 +190,18 @@ def cesium_skirt(segments=48, rows=16, waist_y=0.95, hem_y=0.45, flare=0.13):
         rz = max(wz + CLEARANCE + flare * t, ez + CLEARANCE)
         for s in range(segments + 1):  # the seam is duplicated so texture coordinates run 0…1
             phi = 2.0 * math.pi * s / segments
-            vertices.append((rx * math.cos(phi), y, centre - rz * math.sin(phi)))
+            x, z = rx * math.cos(phi), centre - rz * math.sin(phi)
+            if r < band_rows:
+                on_body = reach(y, centre, phi) + band
+                bx, bz = on_body * math.cos(phi), centre - on_body * math.sin(phi)
+                e = r / band_rows
+                x, z = bx + (x - bx) * e, bz + (z - bz) * e
+            vertices.append((x, y, z))
             uvs.append((s / segments, 1.0 - t))
     faces = grid_faces(rows, segments)
     write("cesium_skirt.obj",
-          f"cesium_skirt: A-line skirt on CesiumMan's bind pose, waist y {waist_y} m, hem y {hem_y} m",
+          f"cesium_skirt: A-line skirt on CesiumMan's bind pose, waist y {waist_y} m, hem y {hem_y} m, "
+          f"waistband {band} m off the body",
           vertices, uvs, faces)
 
 

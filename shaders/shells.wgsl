@@ -9,6 +9,9 @@ const SWEPT_PATH_CELLS: f32 = 64.0;
 const NEARBY: u32 = 16u;
 const NO_ENTRY: u32 = 0xffffffffu;
 const NO_LIST: u32 = 0xffffffffu;
+// Two pushes whose sides of the skin have a cosine below this pinch the particle (PINCH in
+// src/collide/shell/contact.rs).
+const PINCH: f32 = -0.5;
 // ShellInfo.flags bits (gpu::layout::shell_flags).
 const SHELL_SWEPT: u32 = 1u;
 const SHELL_NORMALS: u32 = 2u;
@@ -73,6 +76,12 @@ struct PushOut {
     total: vec3<f32>,
     skin: vec3<f32>,
     contacts: u32,
+    // The first push's side of the skin, whether a later one opposed it, where the particle
+    // was before the pushes and the pushes' lengths summed (Contact on the CPU).
+    first: vec3<f32>,
+    pinched: bool,
+    start: vec3<f32>,
+    pressed: f32,
     // The nearest candidates within two reaches of where the gathering looked, sorted by
     // squared distance, then index (Nearest in src/collide/shell/contact.rs).
     listed: u32,
@@ -86,6 +95,10 @@ fn push_out_at(p: vec3<f32>) -> PushOut {
     acc.total = vec3<f32>(0.0);
     acc.skin = vec3<f32>(0.0);
     acc.contacts = 0u;
+    acc.first = vec3<f32>(0.0);
+    acc.pinched = false;
+    acc.start = p;
+    acc.pressed = 0.0;
     acc.listed = 0u;
     return acc;
 }
@@ -157,8 +170,23 @@ fn shell_push_visit(at: ShellAt, j: u32, reach: f32, acc: ptr<function, PushOut>
         }
         push = n * (reach - dist);
     }
+    // The side of the skin the push comes from (Contact::add): the skin's unit normal, or the
+    // push's direction on a shell without normals.
+    var side = normal;
+    if ((at.info.flags & SHELL_NORMALS) == 0u) {
+        let push_len = length(push);
+        side = select(vec3<f32>(0.0), push * (1.0 / push_len), push_len > 1e-30);
+    }
+    if (any(side != vec3<f32>(0.0))) {
+        if (all((*acc).first == vec3<f32>(0.0))) {
+            (*acc).first = side;
+        } else if (dot(side, (*acc).first) < PINCH) {
+            (*acc).pinched = true;
+        }
+    }
     (*acc).p = (*acc).p + push;
     (*acc).total = (*acc).total + push;
+    (*acc).pressed = (*acc).pressed + length(push);
     (*acc).skin = (*acc).skin + q.motion.xyz;
     (*acc).contacts = (*acc).contacts + 1u;
 }
@@ -228,6 +256,15 @@ fn shell_finish(at: ShellAt, x3: vec3<f32>, acc: PushOut) -> vec4<f32> {
         n = acc.total / push_len;
     }
     let skin = acc.skin / f32(acc.contacts);
+    if (acc.pinched) {
+        // Held across the gap, slipping along it past friction on the squeeze (the CPU's).
+        let n = acc.first;
+        let wanted = (acc.start - x3) - skin;
+        let along = wanted - n * dot(wanted, n);
+        let squeeze = acc.pressed / f32(acc.contacts);
+        let held = friction_removed(along, n, at.info.friction * squeeze);
+        return vec4<f32>(skin + along - held, 0.0);
+    }
     let relative = (p - x3) - skin;
     p = p - friction_removed(relative, n, at.info.friction * push_len);
     return vec4<f32>(p - x3, 0.0);

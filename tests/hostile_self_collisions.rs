@@ -11,48 +11,11 @@
 
 mod common;
 
-use common::{cuboid, flat_shaded, prism};
+use common::{cuboid, flat_shaded, prism, read_obj, write_obj};
 use drape::collide::crossings::{RIM, TOUCH};
 use drape::collide::mesh::REACH;
 use drape::mesh::WELD;
 use glam::{DVec3, Vec3};
-use std::path::Path;
-
-/// `v`, `t` as an OBJ file at `path`.
-fn write_obj(path: &Path, v: &[Vec3], t: &[[u32; 3]]) {
-    let mut text = String::new();
-    for p in v {
-        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for [a, b, c] in t {
-        text += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
-    }
-    std::fs::write(path, text).unwrap();
-}
-
-/// The vertices and triangles of an OBJ file drape wrote.
-fn read_obj(path: &Path) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let (mut v, mut t) = (Vec::new(), Vec::new());
-    for line in std::fs::read_to_string(path).unwrap().lines() {
-        let mut words = line.split_whitespace();
-        match words.next() {
-            Some("v") => {
-                let c: Vec<f32> = words.map(|w| w.parse().unwrap()).collect();
-                v.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let i: Vec<u32> = words
-                    .map(|w| w.split('/').next().unwrap().parse::<u32>().unwrap() - 1)
-                    .collect();
-                for k in 1..i.len() - 1 {
-                    t.push([i[0], i[k], i[k + 1]]);
-                }
-            }
-            _ => {}
-        }
-    }
-    (v, t)
-}
 
 /// True when segment p–q passes through triangle abc: its ends more than `TOUCH` either side
 /// of the plane, and the point where it meets the plane more than `RIM` inside the triangle by

@@ -140,7 +140,7 @@ pub mod collider_kind {
 
 /// Constants the kernels share with the Rust code, by their WGSL name: `tests/shaders.rs`
 /// checks that every one is declared in some kernel with this value.
-pub const SHARED_CONSTANTS: [(&str, f64); 19] = [
+pub const SHARED_CONSTANTS: [(&str, f64); 20] = [
     (
         "SWEPT_PATH_CELLS",
         crate::collide::shell::SWEPT_PATH_CELLS as f64,
@@ -150,6 +150,7 @@ pub const SHARED_CONSTANTS: [(&str, f64); 19] = [
     ("HASH_Z", crate::collide::HASH_PRIMES[2] as f64),
     ("NEARBY", crate::collide::shell::NEARBY as f64),
     ("SHELL_FOUND", crate::collide::shell::SHELL_FOUND as f64),
+    ("PINCH", crate::collide::shell::PINCH as f64),
     ("SKIP_STEPS", crate::collide::particles::SKIP_STEPS as f64),
     ("B_END", crate::sim::model::Slot::B_END as f64),
     ("TINY_LENGTH", crate::sim::constraint::TINY_LENGTH as f64),

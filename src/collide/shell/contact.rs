@@ -6,12 +6,19 @@ use super::*;
 use glam::{Vec3, Vec4};
 
 /// A garment particle's push out of a shell so far: where it is, the pushes summed, the skin's
-/// motion summed over the contacts, and their count (for friction).
+/// motion summed over the contacts, and their count (for friction); the side of the skin the
+/// first push came from and whether a later one came from the opposite side (a pinch,
+/// [`PINCH`]); where the particle was before any push, and the pushes' lengths summed (how hard
+/// a pinch squeezes it).
 pub(super) struct Contact {
     pub(super) p: Vec3,
     pub(super) push: Vec3,
     pub(super) skin: Vec3,
     pub(super) count: u32,
+    pub(super) first: Vec3,
+    pub(super) pinched: bool,
+    pub(super) start: Vec3,
+    pub(super) pressed: f32,
 }
 
 impl Contact {
@@ -21,9 +28,40 @@ impl Contact {
             push: Vec3::ZERO,
             skin: Vec3::ZERO,
             count: 0,
+            first: Vec3::ZERO,
+            pinched: false,
+            start: p,
+            pressed: 0.0,
         }
     }
+
+    /// Counts a push of the skin at a contact whose skin moved by `motion`, from the side of
+    /// the skin `side` faces (a unit normal; the push's direction where the shell has none).
+    #[inline(always)]
+    pub(super) fn add(&mut self, push: Vec3, motion: Vec3, side: Option<Vec3>) {
+        let side = side.unwrap_or_else(|| push.normalize_or_zero());
+        if side != Vec3::ZERO {
+            if self.first == Vec3::ZERO {
+                self.first = side;
+            } else if side.dot(self.first) < PINCH {
+                self.pinched = true;
+            }
+        }
+        self.p += push;
+        self.push += push;
+        self.pressed += push.length();
+        self.skin += motion;
+        self.count += 1;
+    }
 }
+
+/// Two pushes of one garment particle from sides of the skin whose normals' cosine is below this
+/// (more than 120° apart) come from two sides of the skin closing on it (a hand against a hip, an arm against
+/// the side, the two faces of a thin plate): the particle is *pinched*. Pushed from both sides
+/// it would be squeezed out sideways, along the skin, by however far the two reaches overlap,
+/// and tear its springs; instead it is held where it was, carried by the skin's mean motion
+/// (`tests/pinch.rs`; docs/benchmarks.md, "Pinches").
+pub const PINCH: f32 = -0.5;
 
 /// The [`NEARBY`] shell particles nearest a point within two reaches of it, sorted by squared
 /// distance and then index (so the same set in any visiting order, a particle visited twice
@@ -383,10 +421,9 @@ impl ShellCollider {
                     n * (reach - dist)
                 }
             };
-            contact.p += push;
-            contact.push += push;
-            contact.skin += self.motion[i];
-            contact.count += 1;
+            // The side of the skin the push comes from: its normal there, or the push's
+            // direction on a shell without normals.
+            contact.add(push, self.motion[i], self.now_normal.get(i).copied());
         }
     }
 
@@ -405,6 +442,16 @@ impl ShellCollider {
             Vec3::Y
         };
         let skin = contact.skin / contact.count as f32;
+        if contact.pinched {
+            // Held across the gap, carried by the skin; along it, the motion the solve wanted
+            // relative to the skin slips past what friction on the squeeze holds back.
+            let n = contact.first;
+            let wanted = (contact.start - x3) - skin;
+            let along = wanted - n * wanted.dot(n);
+            let squeeze = contact.pressed / contact.count as f32;
+            let held = crate::collide::friction_removed(along, n, self.friction * squeeze);
+            return (skin + along - held).extend(0.0);
+        }
         let relative = (p - x3) - skin;
         p -= crate::collide::friction_removed(relative, n, self.friction * push_len);
         (p - x3).extend(0.0)

@@ -8,6 +8,12 @@
 //! a garment particle overlaps several shell particles, they push nearest first, each from where
 //! the ones before left it: the result does not depend on the order the shell's particles are
 //! stored in (they are stored in Morton order of their cells, for the caches) or visited in.
+//! Where two of those pushes come from opposite sides of the skin ([`PINCH`]: the body closing
+//! on itself, a hand against a hip, or the two faces of a thin plate), the particle is
+//! *pinched*: pushed from both sides it would be squeezed out sideways along the skin by the
+//! overlap of the two reaches and tear its springs, so instead it is held where it was, carried
+//! by the skin's mean motion, and slips along the skin only by what the solve asks beyond
+//! friction on the squeeze.
 //!
 //! With the swept test on, each garment particle's path over the substep is also traced against
 //! the shell particles *relative to their own motion*: a path that crosses the skin's tangent
@@ -37,7 +43,7 @@ use contact::*;
 use grid::*;
 use placement::*;
 
-pub use contact::{listed, Nearby, NEARBY, SHELL_FOUND, SWEPT_PATH_CELLS};
+pub use contact::{listed, Nearby, NEARBY, PINCH, SHELL_FOUND, SWEPT_PATH_CELLS};
 pub use near::NearGarments;
 pub use placement::frame_weight;
 

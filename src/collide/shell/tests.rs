@@ -432,6 +432,56 @@ fn a_particle_under_the_skin_goes_back_out_along_the_normal() {
     assert!(radial.y < -0.001, "{radial}");
 }
 
+/// Two shell particles on facing skins (normals +Z and −Z) 8 mm apart, offset 6 mm along the
+/// skin, closed on a garment particle between them; friction `mu`; both skins moving by `lift`
+/// over the substep. Returns where a particle starting at `x` and moved 1 mm along the skin by
+/// the solve ends.
+fn resolve_in_a_pinch(mu: f32, lift: Vec3) -> (Vec3, Vec3) {
+    let jaws = vec![Vec3::new(0.0, 0.0, -0.004), Vec3::new(0.006, 0.0, 0.004)];
+    let moved = jaws.iter().map(|p| *p + lift).collect();
+    let mut shell = ShellCollider::new("jaws".into(), 0.01, mu, vec![jaws, moved]);
+    shell.normals = vec![vec![Vec3::Z, -Vec3::Z]; 2];
+    shell.advance(0.0, 1.0, 0.005);
+    let x = Vec4::new(0.003, 0.0, 0.0, 0.0);
+    let d = Vec4::new(0.001, 0.0, 0.0, 0.0);
+    (
+        x.truncate(),
+        (x + shell.resolve(x, d, 0.005, None)).truncate(),
+    )
+}
+
+#[test]
+fn a_particle_pinched_between_two_skins_is_held_not_squeezed_out_sideways() {
+    // Pushed out of each in turn, along the line from the first's centre (it lies above that
+    // particle's tangent plane), it would be squeezed 5 mm or more along the skin; held, it
+    // stays where it was.
+    let (x, p) = resolve_in_a_pinch(0.5, Vec3::ZERO);
+    assert!(p.distance(x) < 1e-7, "held at {x}: {p}");
+    // Carried by the skins' mean motion.
+    let lift = Vec3::new(0.0, 0.002, 0.0);
+    let (x, p) = resolve_in_a_pinch(0.5, lift);
+    assert!(p.distance(x + lift) < 1e-7, "carried to {}: {p}", x + lift);
+    // Without friction the motion the solve wanted along the skin slips through.
+    let (x, p) = resolve_in_a_pinch(0.0, Vec3::ZERO);
+    let slipped = x + Vec3::new(0.001, 0.0, 0.0);
+    assert!(p.distance(slipped) < 1e-7, "slipped to {slipped}: {p}");
+    // One skin alone pushes the particle out, as before.
+    let mut one = ShellCollider::new(
+        "s".into(),
+        0.01,
+        0.5,
+        vec![vec![Vec3::new(0.0, 0.0, -0.004)]],
+    );
+    one.normals = vec![vec![Vec3::Z]];
+    one.advance(0.0, 0.0, 0.005);
+    let x = Vec4::new(0.003, 0.0, 0.0, 0.0);
+    let q = (x + one.resolve(x, Vec4::ZERO, 0.005, None)).truncate();
+    assert!(
+        (q - Vec3::new(0.0, 0.0, -0.004)).length() > 0.0149,
+        "pushed out: {q}"
+    );
+}
+
 /// The two-byte starts' running sum, eight at a time, is the running sum entry by entry, for
 /// boxes of every length around a multiple of eight, mostly empty or mostly full.
 #[test]
