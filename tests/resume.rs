@@ -78,6 +78,8 @@ fn assert_same_frames(a: &serde_json::Value, b: &serde_json::Value) {
         "penetrations_per_frame",
         "worst_mesh_penetrations",
         "mesh_penetrations_per_frame",
+        "worst_held_mesh_penetrations",
+        "held_mesh_penetrations_per_frame",
     ] {
         assert_eq!(a[field], b[field], "{field}");
     }

@@ -70,6 +70,11 @@ pub struct Measured {
     pub penetrations_per_frame: Vec<FramePenetrations>,
     pub worst_mesh_penetrations: Vec<MeshPenetration>,
     pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
+    /// Absent in checkpoints of drape before the held particles' count.
+    #[serde(default)]
+    pub worst_held_mesh_penetrations: Vec<MeshPenetration>,
+    #[serde(default)]
+    pub held_mesh_penetrations_per_frame: Vec<FramePenetrations>,
     /// Absent in checkpoints of drape before the crossing count.
     #[serde(default)]
     pub crossings_per_frame: Vec<crate::report::FrameCrossings>,

@@ -111,6 +111,8 @@ pub fn run(
             .push(FrameCrossings { frame, crossings });
         let unstable = measure(sim, &free, (frame, crossings), &mut progress, report);
         measure_meshes(&free, (meshes, &probes), baked as usize - 1, frame, report);
+        let held = sim.held_positions();
+        measure_held(&held, (meshes, &probes), baked as usize - 1, frame, report);
         if let Some(r) = &sim.residuals {
             progress.residuals.push(r.clone());
         }
@@ -193,6 +195,8 @@ fn sum_up(
     report.torn_springs = sim.torn_springs();
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&progress.worst);
+    let held = held_inside_warnings(report);
+    report.warnings.extend(held);
     if sim.residuals.is_some() {
         report.residuals = Some(progress.residuals);
     }
@@ -214,6 +218,8 @@ impl Measured {
             penetrations_per_frame: report.penetrations_per_frame.clone(),
             worst_mesh_penetrations: report.worst_mesh_penetrations.clone(),
             mesh_penetrations_per_frame: report.mesh_penetrations_per_frame.clone(),
+            worst_held_mesh_penetrations: report.worst_held_mesh_penetrations.clone(),
+            held_mesh_penetrations_per_frame: report.held_mesh_penetrations_per_frame.clone(),
             crossings_per_frame: report.crossings_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
@@ -226,6 +232,8 @@ impl Measured {
         report.penetrations_per_frame = self.penetrations_per_frame;
         report.worst_mesh_penetrations = self.worst_mesh_penetrations;
         report.mesh_penetrations_per_frame = self.mesh_penetrations_per_frame;
+        report.worst_held_mesh_penetrations = self.worst_held_mesh_penetrations;
+        report.held_mesh_penetrations_per_frame = self.held_mesh_penetrations_per_frame;
         report.crossings_per_frame = self.crossings_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
@@ -413,6 +421,38 @@ fn measure_meshes(
     report: &mut Report,
 ) {
     let found = mesh_penetrations(free, meshes, index);
+    for (c, &(name, p)) in found.iter().enumerate() {
+        preroll_mesh(report, frame, c, name, p);
+    }
+    let lists = (
+        &mut report.worst_mesh_penetrations,
+        &mut report.mesh_penetrations_per_frame,
+    );
+    record_meshes(found, frame, lists);
+}
+
+/// Measures how many of the `held` (pinned and attached) garment particles lie inside each
+/// character's own mesh at baked frame `index` (shot frame `frame`), into `report`: apart from
+/// the free ones, which the accuracy targets answer for.
+fn measure_held(held: &[glam::Vec4], meshes: Shown, index: usize, frame: u32, report: &mut Report) {
+    if held.is_empty() {
+        return;
+    }
+    let found = mesh_penetrations(held, meshes, index);
+    let lists = (
+        &mut report.worst_held_mesh_penetrations,
+        &mut report.held_mesh_penetrations_per_frame,
+    );
+    record_meshes(found, frame, lists);
+}
+
+/// Adds frame `frame`'s penetrations per character (`found`) to a report's list of the worst
+/// per character and its list per frame.
+fn record_meshes(
+    found: Vec<(&str, collide::Penetration)>,
+    frame: u32,
+    (worst, per_frame): (&mut Vec<MeshPenetration>, &mut Vec<FramePenetrations>),
+) {
     if found.is_empty() {
         return;
     }
@@ -422,20 +462,44 @@ fn measure_meshes(
         deepest_m: Vec::new(),
     };
     for (c, (name, p)) in found.into_iter().enumerate() {
-        preroll_mesh(report, frame, c, name, p);
         this.inside.push(p.inside);
         this.deepest_m.push(p.deepest);
-        if report.worst_mesh_penetrations.len() <= c {
-            report.worst_mesh_penetrations.push(MeshPenetration {
+        if worst.len() <= c {
+            worst.push(MeshPenetration {
                 character: name.to_string(),
                 penetration: collide::Penetration::default(),
             });
         }
-        let worst = &mut report.worst_mesh_penetrations[c].penetration;
-        worst.inside = worst.inside.max(p.inside);
-        worst.deepest = worst.deepest.max(p.deepest);
+        let w = &mut worst[c].penetration;
+        w.inside = w.inside.max(p.inside);
+        w.deepest = w.deepest.max(p.deepest);
     }
-    report.mesh_penetrations_per_frame.push(this);
+    per_frame.push(this);
+}
+
+/// A warning per character whose mesh had held garment particles inside it: they follow their
+/// targets, so the bake cannot move them out; the user can.
+fn held_inside_warnings(report: &Report) -> Vec<String> {
+    let per_frame = &report.held_mesh_penetrations_per_frame;
+    let worst = report.worst_held_mesh_penetrations.iter().enumerate();
+    worst
+        .filter(|(_, m)| m.penetration.inside > 0)
+        .map(|(c, m)| {
+            let frames: Vec<u32> = per_frame
+                .iter()
+                .filter(|f| f.inside.get(c).is_some_and(|&n| n > 0))
+                .map(|f| f.frame)
+                .collect();
+            format!(
+                "character {}: up to {} pinned or attached garment particles inside its mesh, {:.1} mm deep at the most, in {} frames from frame {}: they follow their targets, which no budget moves; attach them farther from the skin or move the garment out",
+                m.character,
+                m.penetration.inside,
+                m.penetration.deepest * 1e3,
+                frames.len(),
+                frames.first().copied().unwrap_or_default()
+            )
+        })
+        .collect()
 }
 
 /// Measures frame `frame` (whose garments cross themselves `crossings` times): strain,

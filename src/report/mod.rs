@@ -63,6 +63,15 @@ pub struct Report {
     /// Every baked frame's particles inside each character's mesh (in `worst_mesh_penetrations`
     /// order) and the deepest [m]; empty without characters.
     pub mesh_penetrations_per_frame: Vec<FramePenetrations>,
+    /// Per character shown, the most pinned or attached garment particles (waistbands, collars,
+    /// held edges) inside its own mesh at once and the deepest [m] over the bake, measured as
+    /// `worst_mesh_penetrations` is. They follow their targets, so no budget moves them and the
+    /// accuracy targets leave them out; empty without characters or without held particles.
+    pub worst_held_mesh_penetrations: Vec<MeshPenetration>,
+    /// Every baked frame's held particles inside each character's mesh (in
+    /// `worst_mesh_penetrations` order) and the deepest [m]; empty without characters or
+    /// without held particles.
+    pub held_mesh_penetrations_per_frame: Vec<FramePenetrations>,
     /// Every baked frame's pairs of garment triangles passing through each other.
     pub crossings_per_frame: Vec<FrameCrossings>,
     /// Springs broken by tearing over the bake.

@@ -604,6 +604,19 @@ impl Simulation {
             .collect()
     }
 
+    /// Positions of the pinned and attached particles (storage order), which follow their
+    /// targets: what [`Simulation::free_positions`] leaves out, measured apart because no budget
+    /// moves them.
+    pub fn held_positions(&self) -> Vec<Vec4> {
+        self.state
+            .positions
+            .iter()
+            .zip(&self.model.inv_mass)
+            .filter(|(_, &w)| w == 0.0)
+            .map(|(p, _)| *p)
+            .collect()
+    }
+
     /// Positions in export order.
     pub fn export_positions(&self) -> Vec<Vec3> {
         self.state.export_positions(&self.model)
