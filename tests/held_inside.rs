@@ -3,11 +3,12 @@
 //! the pinned particles inside the box at each frame are known from the geometry alone. The
 //! report counts them per frame in `held_mesh_penetrations_per_frame`, their depth is the
 //! distance to the box's nearest face, the free count stays its own, and the bake warns; a box
-//! that passes behind the sheet leaves the count at zero and no warning.
+//! that passes behind the sheet leaves the count at zero and no warning. The box is written
+//! flat-shaded (every face its own vertices), the case that once fooled the free count.
 
 mod common;
 
-use common::{cuboid, write_obj};
+use common::{cuboid, flat_shaded, write_obj};
 use glam::Vec3;
 
 const FRAMES: usize = 30;
@@ -49,7 +50,9 @@ fn bake(behind: f32) -> serde_json::Value {
     std::fs::create_dir(dir.path().join("box")).unwrap();
     for k in 0..FRAMES {
         let (lo, hi) = the_box(k, behind);
+        // Flat-shaded, as many exports write a hard-edged prop: no two faces share a vertex.
         let (v, t) = cuboid(lo, hi);
+        let (v, t) = flat_shaded(&v, &t);
         let path = dir.path().join(format!("box/frame_{:04}.obj", k + 1));
         write_obj(&path, &v, &t);
     }

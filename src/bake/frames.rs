@@ -110,9 +110,9 @@ pub fn run(
             .crossings_per_frame
             .push(FrameCrossings { frame, crossings });
         let unstable = measure(sim, &free, (frame, crossings), &mut progress, report);
-        measure_meshes(&free, (meshes, &probes), baked as usize - 1, frame, report);
         let held = sim.held_positions();
-        measure_held(&held, (meshes, &probes), baked as usize - 1, frame, report);
+        let found = mesh_penetrations([&free, &held], (meshes, &probes), baked as usize - 1);
+        measure_meshes(found, !held.is_empty(), frame, report);
         if let Some(r) = &sim.residuals {
             progress.residuals.push(r.clone());
         }
@@ -339,9 +339,9 @@ fn accuracy_of(
     let deepest = solid_penetrations(sim, &free)
         .into_iter()
         .chain(
-            mesh_penetrations(&free, meshes, index)
+            mesh_penetrations([&free, &[]], meshes, index)
                 .into_iter()
-                .map(|(_, p)| p),
+                .map(|(_, [p, _])| p),
         )
         .map(|p| p.deepest)
         .fold(0.0f32, f32::max);
@@ -391,59 +391,62 @@ impl MeshProbes {
     }
 }
 
-/// The `free` particles inside each character's own mesh at baked frame `index`, by name.
+/// The `free` and the `held` (pinned, attached) particles inside each character's own mesh
+/// at baked frame `index`, by name: each mesh posed once for both.
 fn mesh_penetrations<'m>(
-    free: &[glam::Vec4],
+    [free, held]: [&[glam::Vec4]; 2],
     (meshes, probes): Shown<'m>,
     index: usize,
-) -> Vec<(&'m str, collide::Penetration)> {
+) -> Vec<(&'m str, [collide::Penetration; 2])> {
     let mut characters = meshes.characters_at(index).peekable();
     if characters.peek().is_none() {
         return Vec::new();
     }
-    let free: Vec<glam::Vec3> = free.iter().map(|p| p.truncate()).collect();
+    let points =
+        |set: &[glam::Vec4]| -> Vec<glam::Vec3> { set.iter().map(|p| p.truncate()).collect() };
+    let (free, held) = (points(free), points(held));
     characters
         .zip(&probes.0)
         .map(|((name, vertices, _), topology)| {
             let surface = collide::mesh::Surface::posed(topology, vertices);
-            (name, surface.penetration(&free))
+            let held = match held.is_empty() {
+                true => collide::Penetration::default(),
+                false => surface.penetration(&held),
+            };
+            (name, [surface.penetration(&free), held])
         })
         .collect()
 }
 
-/// Measures how many of the `free` garment particles lie inside each character's own mesh at
-/// baked frame `index` (shot frame `frame`), into `report`.
+/// Records the particles inside each character's own mesh at shot frame `frame` (`found`, free
+/// and held) into `report`: the held ones apart (when there are any, `held`), since the
+/// accuracy targets answer only for the free ones.
 fn measure_meshes(
-    free: &[glam::Vec4],
-    meshes: Shown,
-    index: usize,
+    found: Vec<(&str, [collide::Penetration; 2])>,
+    held: bool,
     frame: u32,
     report: &mut Report,
 ) {
-    let found = mesh_penetrations(free, meshes, index);
-    for (c, &(name, p)) in found.iter().enumerate() {
+    let free: Vec<_> = found.iter().map(|&(name, [p, _])| (name, p)).collect();
+    for (c, &(name, p)) in free.iter().enumerate() {
         preroll_mesh(report, frame, c, name, p);
     }
     let lists = (
         &mut report.worst_mesh_penetrations,
         &mut report.mesh_penetrations_per_frame,
     );
-    record_meshes(found, frame, lists);
-}
-
-/// Measures how many of the `held` (pinned and attached) garment particles lie inside each
-/// character's own mesh at baked frame `index` (shot frame `frame`), into `report`: apart from
-/// the free ones, which the accuracy targets answer for.
-fn measure_held(held: &[glam::Vec4], meshes: Shown, index: usize, frame: u32, report: &mut Report) {
-    if held.is_empty() {
-        return;
+    record_meshes(free, frame, lists);
+    if held {
+        let lists = (
+            &mut report.worst_held_mesh_penetrations,
+            &mut report.held_mesh_penetrations_per_frame,
+        );
+        record_meshes(
+            found.into_iter().map(|(n, [_, p])| (n, p)).collect(),
+            frame,
+            lists,
+        );
     }
-    let found = mesh_penetrations(held, meshes, index);
-    let lists = (
-        &mut report.worst_held_mesh_penetrations,
-        &mut report.held_mesh_penetrations_per_frame,
-    );
-    record_meshes(found, frame, lists);
 }
 
 /// Adds frame `frame`'s penetrations per character (`found`) to a report's list of the worst
