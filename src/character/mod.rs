@@ -4,7 +4,7 @@
 //!
 //! - [`import`]: one file (glTF/GLB, FBX, Collada, OBJ, ... whatever assimp reads) with its node
 //!   hierarchy, skinning and clips, posed at any time; [`MeshSelection`] picks the meshes that
-//!   collide;
+//!   collide (`meshes`) and the body parts, by the joints that move them (`joints`);
 //! - [`Character`]: frames at the scene's fps from a skinned clip, a static mesh, or a sequence of
 //!   files (one mesh per frame), with unit scale, up axis, placement, time offset, speed and
 //!   loop/hold applied;
@@ -46,6 +46,8 @@ pub struct CharacterOptions {
     pub sequence_fps: Option<f32>,
     /// Which of the file's meshes collide (None: all of them).
     pub meshes: Option<MeshSelection>,
+    /// Which of the file's joints move triangles that collide (None: all of them).
+    pub joints: Option<MeshSelection>,
     /// Meshes left out altogether, neither colliding nor shown (a garment modelled in the
     /// character's file), by mesh, node or material name.
     pub hidden: Vec<String>,
@@ -106,6 +108,7 @@ impl CharacterSpec {
             looping: self.looping,
             sequence_fps: self.sequence_fps,
             meshes: self.meshes.clone(),
+            joints: self.joints.clone(),
             hidden: Vec::new(),
             preroll: self.preroll,
             lead_in: 0,
@@ -114,6 +117,11 @@ impl CharacterSpec {
 }
 
 impl CharacterOptions {
+    /// Whether a mesh or joint selection may leave triangles out of the collisions.
+    pub fn selects(&self) -> bool {
+        self.meshes.is_some() || self.joints.is_some()
+    }
+
     /// Rejects impossible values: (the scene field's name, the reason). The command line maps
     /// the field to its flag (`scale` → `--scale`).
     pub fn check(&self) -> std::result::Result<(), (&'static str, String)> {
@@ -221,8 +229,13 @@ impl Sequence {
                     .map(|&v| transform.transform_point3(v))
                     .collect(),
             );
-            (read.triangles).push(asset.colliding_triangles(options.meshes.as_ref(), file)?);
-            if options.meshes.is_some() && read.visible.is_none() {
+            let colliding = asset.colliding_triangles(
+                options.meshes.as_ref(),
+                options.joints.as_ref(),
+                file,
+            )?;
+            (read.triangles).push(colliding);
+            if options.selects() && read.visible.is_none() {
                 read.visible = Some(asset.triangles());
             }
             for w in asset.warnings {
@@ -389,8 +402,9 @@ impl Character {
                 place(asset.pose(clip, t))
             })
             .collect();
-        let triangles = asset.colliding_triangles(options.meshes.as_ref(), source)?;
-        let selected = options.meshes.is_some() || !options.hidden.is_empty();
+        let triangles =
+            asset.colliding_triangles(options.meshes.as_ref(), options.joints.as_ref(), source)?;
+        let selected = options.selects() || !options.hidden.is_empty();
         Ok(Character {
             source: source.to_path_buf(),
             triangles: vec![triangles],

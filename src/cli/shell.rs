@@ -266,6 +266,7 @@ pub fn inspect(
     if path.is_file() && !path.to_string_lossy().contains('%') {
         let asset = drape::character::Asset::open(path)?;
         inspect_meshes(&asset, &character, options, radius);
+        inspect_joints(&asset, path);
         inspect_poses(&asset, &character, options);
     }
     let shell =
@@ -325,6 +326,30 @@ fn inspect_meshes(
             }
         );
     }
+}
+
+/// The file's joints (the names `characters[].joints` takes), each with the triangles it and
+/// the joints below it mostly move (what `{"exclude": [name]}` leaves out of the collisions).
+fn inspect_joints(asset: &drape::character::Asset, path: &std::path::Path) {
+    let names = asset.joint_names();
+    if names.is_empty() {
+        return;
+    }
+    let all = asset.triangles().len();
+    let listed: Vec<String> = names
+        .iter()
+        .map(|&n| {
+            let exclude = drape::scene::MeshSelection::Exclude(vec![n.to_string()]);
+            let kept = asset.colliding_triangles(None, Some(&exclude), path);
+            let moved = kept.map_or(all, |k| all - k.len());
+            format!("{n:?} ({moved})")
+        })
+        .collect();
+    println!(
+        "  joints ({}), each with the triangles it and the joints below it move (characters[].joints): {}",
+        names.len(),
+        listed.join(", ")
+    );
 }
 
 /// The bind pose, the default node pose and the first frame side by side, with a word when

@@ -39,6 +39,10 @@ pub struct CharacterSpec {
     /// Which of the file's meshes collide: `{"include": [names]}` or `{"exclude": [names]}`,
     /// each a mesh, node or material name. Default all. Exports show the whole character.
     pub meshes: Option<MeshSelection>,
+    /// Which of the file's joints collide: `{"exclude": [names]}` leaves out the triangles
+    /// those joints (and the joints below them) mostly move, `{"include": [names]}` keeps only
+    /// those. Default all. Exports show the whole character.
+    pub joints: Option<MeshSelection>,
     /// Frames simulated before the scene's first frame: the character holds its bind pose for
     /// `settle` frames, then blends into the clip's first frame over `blend`. Default none.
     pub preroll: Option<Preroll>,
@@ -62,6 +66,7 @@ impl Default for CharacterSpec {
             radius: 0.01,
             friction: 0.5,
             meshes: None,
+            joints: None,
             preroll: None,
         }
     }

@@ -14,6 +14,7 @@
 
 mod assimp;
 mod gltf;
+mod joints;
 
 use crate::error::{Error, Result};
 use glam::{Mat4, Quat, Vec3};
@@ -179,10 +180,25 @@ impl Asset {
         find_clip(self.clips.iter().map(|c| c.name.as_str()), name)
     }
 
+    /// The triangles over [`Asset::pose`]'s vertices that collide: of the meshes `meshes`
+    /// keeps (all of them without one), those the `joints` selection keeps (see `joints.rs`).
+    pub fn colliding_triangles(
+        &self,
+        meshes: Option<&crate::scene::MeshSelection>,
+        joints: Option<&crate::scene::MeshSelection>,
+        file: &Path,
+    ) -> Result<Vec<[u32; 3]>> {
+        let triangles = self.mesh_selected(meshes, file)?;
+        match joints {
+            Some(joints) => self.joint_selected(triangles, joints, file),
+            None => Ok(triangles),
+        }
+    }
+
     /// The triangles over [`Asset::pose`]'s vertices of the meshes `selection` keeps (all of
     /// them without one). Refuses a name that matches no mesh, node or material, and a
     /// selection that keeps no triangle, naming the file's meshes.
-    pub fn colliding_triangles(
+    fn mesh_selected(
         &self,
         selection: Option<&crate::scene::MeshSelection>,
         file: &Path,
