@@ -3,6 +3,8 @@
 //! hierarchy and the skins' weights), on a skinned body (CesiumMan) and on a rig of rigid parts
 //! with skinned hands (RobotExpressive); and a name that is no joint refused.
 
+mod common;
+
 use drape::character::{Asset, Character, CharacterOptions};
 use drape::scene::MeshSelection;
 use std::path::Path;
@@ -149,4 +151,40 @@ fn a_name_that_is_no_joint_is_refused_with_the_joints_listed() {
     let err = load(path, Some(MeshSelection::Include(Vec::new()))).unwrap_err();
     assert_eq!(err.exit_code(), 2);
     assert!(err.to_string().contains("keeps no triangle"), "{err}");
+}
+
+/// A sheet dropped on RobotExpressive's head, baked with `joints` leaving out `Head` (the joint
+/// whose subtree is just the three Head meshes), with `meshes` leaving out the same meshes, and
+/// with everything colliding: the first two are the same bake to the bit (the same shell and
+/// mesh metric), the third is not.
+#[test]
+fn a_joint_left_out_bakes_as_its_meshes_left_out() {
+    let dir = common::temp_dir();
+    let robot = std::fs::canonicalize("characters/RobotExpressive/RobotExpressive.glb").unwrap();
+    let bake = |selection: &str| -> serde_json::Value {
+        let scene = format!(
+            r#"{{ "name": "head", "frames": 12, "substeps": 5,
+                "garments": [{{ "name": "sheet", "resolution": [12, 12], "size": [0.3, 0.3],
+                                "mass": 0.05, "position": [0, 1.76, 0] }}],
+                "characters": [{{ "name": "robot", "file": {robot:?}, "scale": 0.392 {selection} }}] }}"#
+        );
+        common::write(dir.path(), "scene.json", &scene);
+        let _ = std::fs::remove_dir_all(dir.path().join("out"));
+        common::bake_report(dir.path())
+    };
+    let by_joint = bake(r#", "joints": { "exclude": ["Head"] }"#);
+    let by_mesh = bake(r#", "meshes": { "exclude": ["Head"] }"#);
+    let whole = bake("");
+    let shell = |r: &serde_json::Value| r["characters"][0]["shell_particles"].as_u64().unwrap();
+    assert_eq!(shell(&by_joint), shell(&by_mesh));
+    assert!(
+        shell(&by_joint) < shell(&whole),
+        "the head's particles are gone"
+    );
+    assert_eq!(by_joint["frames_hash"], by_mesh["frames_hash"]);
+    assert_eq!(
+        by_joint["mesh_penetrations_per_frame"],
+        by_mesh["mesh_penetrations_per_frame"]
+    );
+    assert_ne!(by_joint["frames_hash"], whole["frames_hash"]);
 }

@@ -78,6 +78,9 @@ pub struct Measured {
     /// Absent in checkpoints of drape before the crossing count.
     #[serde(default)]
     pub crossings_per_frame: Vec<crate::report::FrameCrossings>,
+    /// Absent in checkpoints of drape before the strain limit.
+    #[serde(default)]
+    pub strain_limited_per_frame: Vec<crate::report::FrameStrainLimited>,
     pub worst_frame: Option<FrameMetrics>,
     pub last_frame: Option<FrameMetrics>,
     /// The pre-roll's report so far (absent in checkpoints of bakes without one).

@@ -197,6 +197,11 @@ fn sum_up(
     report.worst_penetrations = collider_penetrations(&progress.worst);
     let held = held_inside_warnings(report);
     report.warnings.extend(held);
+    if let Some(limit) = sim.solver_settings().strain_limit {
+        report
+            .warnings
+            .extend(strain_limited_warning(report, limit));
+    }
     if sim.residuals.is_some() {
         report.residuals = Some(progress.residuals);
     }
@@ -221,6 +226,7 @@ impl Measured {
             worst_held_mesh_penetrations: report.worst_held_mesh_penetrations.clone(),
             held_mesh_penetrations_per_frame: report.held_mesh_penetrations_per_frame.clone(),
             crossings_per_frame: report.crossings_per_frame.clone(),
+            strain_limited_per_frame: report.strain_limited_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
             preroll: report.preroll.clone(),
@@ -235,6 +241,7 @@ impl Measured {
         report.worst_held_mesh_penetrations = self.worst_held_mesh_penetrations;
         report.held_mesh_penetrations_per_frame = self.held_mesh_penetrations_per_frame;
         report.crossings_per_frame = self.crossings_per_frame;
+        report.strain_limited_per_frame = self.strain_limited_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
         if self.preroll.is_some() {
@@ -480,6 +487,21 @@ fn record_meshes(
     per_frame.push(this);
 }
 
+/// A warning when the strain limit pulled springs back: something dragged or squeezed the
+/// cloth farther than it stretches, and the cloth gave way to it there.
+fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
+    let frames = &report.strain_limited_per_frame;
+    let most = frames.iter().max_by_key(|f| f.springs)?;
+    Some(format!(
+        "the strain limit ({:.0} %) pulled springs back in {} frames from frame {} (the most {} in frame {}): something drags or squeezes the cloth farther than it stretches (a body part where there is no room for it), and the cloth gives way to it there; mesh_penetrations_per_frame shows where it passes into a character",
+        limit * 100.0,
+        frames.len(),
+        frames[0].frame,
+        most.springs,
+        most.frame
+    ))
+}
+
 /// A warning per character whose mesh had held garment particles inside it: they follow their
 /// targets, so the bake cannot move them out; the user can.
 fn held_inside_warnings(report: &Report) -> Vec<String> {
@@ -516,6 +538,11 @@ fn measure(
     report: &mut Report,
 ) -> Option<String> {
     let error = sim.constraint_error();
+    if sim.strain_limited > 0 {
+        let springs = sim.strain_limited;
+        (report.strain_limited_per_frame)
+            .push(crate::report::FrameStrainLimited { frame, springs });
+    }
     let penetrations = solid_penetrations(sim, free);
     report.penetrations_per_frame.push(FramePenetrations {
         frame,

@@ -107,6 +107,8 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
     check_frame_flags(scene, options)?;
+    // A backend the scene refuses is refused before anything is written.
+    backend_kind(scene, budget::Targets::of(scene).is_some(), &mut Vec::new())?;
     let staging = if options.resume == Resume::No {
         Staging::new(&options.out)?
     } else {
@@ -388,21 +390,29 @@ fn shown_scene(scene: &Scene) -> Scene {
 }
 
 /// Where a scene runs: its `backend`, except that accuracy targets (which simulate frames
-/// again on the CPU) refuse `gpu` and make `auto` the CPU, with a warning.
+/// again on the CPU) and a strain limit (applied on the CPU only) refuse `gpu` and make `auto`
+/// the CPU, with a warning.
 fn backend_kind(
     scene: &Scene,
     targets: bool,
     warnings: &mut Vec<String>,
 ) -> Result<crate::scene::BackendKind> {
     use crate::scene::BackendKind;
-    match (targets, scene.backend) {
-        (false, kind) | (true, kind @ BackendKind::Cpu) => Ok(kind),
-        (true, BackendKind::Gpu) => Err(Error::InvalidArgument {
+    let why = if targets {
+        "accuracy targets re-simulate frames on the CPU backend only"
+    } else if scene.solver.strain_limit.is_some() {
+        "solver.strain_limit is applied on the CPU backend only"
+    } else {
+        return Ok(scene.backend);
+    };
+    match scene.backend {
+        BackendKind::Cpu => Ok(BackendKind::Cpu),
+        BackendKind::Gpu => Err(Error::InvalidArgument {
             flag: "backend".into(),
-            reason: "gpu: accuracy targets re-simulate frames on the CPU backend only; use `cpu` or `auto`".into(),
+            reason: format!("gpu: {why}; use `cpu` or `auto`"),
         }),
-        (true, BackendKind::Auto) => {
-            warnings.push("backend auto: accuracy targets choose the budget on the CPU backend only; simulating on the CPU".into());
+        BackendKind::Auto => {
+            warnings.push(format!("backend auto: {why}; simulating on the CPU"));
             Ok(BackendKind::Cpu)
         }
     }

@@ -74,6 +74,10 @@ pub struct Report {
     pub held_mesh_penetrations_per_frame: Vec<FramePenetrations>,
     /// Every baked frame's pairs of garment triangles passing through each other.
     pub crossings_per_frame: Vec<FrameCrossings>,
+    /// The frames in which `solver.strain_limit` pulled springs back, with how many (each
+    /// counted once per substep it was past the limit); empty without a limit or when it was
+    /// never reached.
+    pub strain_limited_per_frame: Vec<FrameStrainLimited>,
     /// Springs broken by tearing over the bake.
     pub torn_springs: usize,
     /// The characters' pre-roll, simulated before the first frame (numbered before
@@ -312,6 +316,14 @@ pub struct FrameMetrics {
 pub struct FrameCrossings {
     pub frame: u32,
     pub crossings: usize,
+}
+
+/// A frame in which the strain limit pulled springs back.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct FrameStrainLimited {
+    pub frame: u32,
+    /// Springs pulled back, summed over the frame's substeps.
+    pub springs: u64,
 }
 
 /// Penetration into one collider.

@@ -212,6 +212,9 @@ pub struct SolverSettings {
     /// positions that are out of them (friction acts once, at the end, on everything pushed).
     /// Default 1: collisions once, after the solve. Between 1 and `iterations`.
     pub contact_passes: u32,
+    /// After each substep, structural springs stretched past this strain (0.2: 20 % longer
+    /// than at rest) are pulled back to it (`sim::limit`). Default none. CPU backend.
+    pub strain_limit: Option<f32>,
 }
 
 impl Default for SolverSettings {
@@ -222,6 +225,7 @@ impl Default for SolverSettings {
             inner_iterations: 1,
             omega: 1.0,
             contact_passes: 1,
+            strain_limit: None,
         }
     }
 }

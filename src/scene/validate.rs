@@ -219,6 +219,15 @@ fn check_timing(scene: &Scene) -> std::result::Result<(), Failure> {
             ),
         ));
     }
+    if let Some(limit) = solver.strain_limit.filter(|l| !(*l > 0.0 && *l <= 1.0)) {
+        return Err(fail(
+            "solver.strain_limit".into(),
+            format!(
+                "must lie in (0, 1], a strain (0.2: springs at most 20 % past their rest \
+                 length; above 1 the stability rule stops the bake first) (got {limit})"
+            ),
+        ));
+    }
     if !(solver.omega > 0.0 && solver.omega < 2.0) {
         return Err(fail(
             "solver.omega".into(),

@@ -12,6 +12,7 @@ pub mod constraint;
 pub mod drivers;
 pub mod forces;
 pub mod integrate;
+mod limit;
 pub mod metrics;
 pub mod model;
 pub mod schedule;
@@ -64,6 +65,9 @@ pub struct Simulation {
     pub stage_times: schedule::StageTimes,
     /// Who runs the team's regions, frame by frame ([`team::Sharing`]).
     pub sharing: team::Sharing,
+    /// Springs the strain limit pulled back in the last frame stepped, each counted once per
+    /// substep it was past the limit (`solver.strain_limit`).
+    pub strain_limited: u64,
 }
 
 /// What a backend that runs whole frames elsewhere (the GPU) drives and writes back: the
@@ -153,6 +157,7 @@ impl Simulation {
             residuals: scene.output.residuals.then(Vec::new),
             stage_times: schedule::StageTimes::default(),
             sharing: team::Sharing::default(),
+            strain_limited: 0,
             model,
             state,
             solver,
@@ -269,10 +274,13 @@ impl Simulation {
         if let Some(r) = &mut self.residuals {
             r.clear();
         }
+        self.strain_limited = 0;
         let substeps = self.drivers.clock.substeps;
+        let limited = self.solver.settings.strain_limit.is_some();
         if !self.drivers.move_within_frames()
             && self.fields.fields.is_none()
             && !self.settling.is_on()
+            && !limited
         {
             let Some(stop) = stop else {
                 self.run_substeps(substeps, None, false, false);
@@ -299,11 +307,11 @@ impl Simulation {
             let start = std::time::Instant::now();
             self.focus_shells(true);
             self.stage_times.lap(schedule::timed("shells"), start);
-            // A settling frame caps the kinetic energy after each substep, so no `finish`
-            // predicts the next substep from velocities the cap is about to scale.
+            // A settling frame caps the kinetic energy after each substep, and a strain limit
+            // moves particles after it, so no `finish` predicts the next substep then.
             let settling = self.settling.is_on();
             for k in 0..self.drivers.clock.substeps {
-                self.substep_in_frame(!settling);
+                self.substep_in_frame(!settling && !limited);
                 self.cap_kinetic_energy();
                 if k + 1 < self.drivers.clock.substeps && stop.is_some_and(|stop| stop()) {
                     self.settling.end();
@@ -379,6 +387,12 @@ impl Simulation {
         if self.fields.fields.is_some() {
             let (v, mass) = (&self.state.velocities, &self.model.mass);
             self.fields.add_substep_work(v, mass, clock.step as f64);
+        }
+        if let Some(most) = self.solver.settings.strain_limit {
+            let start = std::time::Instant::now();
+            let pulled = limit::limit_strain(&self.model, &mut self.state, most, clock.step);
+            self.strain_limited += pulled as u64;
+            self.stage_times.lap(schedule::Stage::Finish.timed(), start);
         }
     }
 
