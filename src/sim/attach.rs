@@ -294,8 +294,9 @@ impl Attachments {
 
     /// Binds the character attachments to `skins`: each particle to the nearest point of the
     /// nearest triangle at its bind frame, or in the character's bind pose for a garment
-    /// modelled on it (`on`). Returns a warning for each attachment with particles far from
-    /// the skin ([`far_from_skin`]).
+    /// modelled on it (`on`); one that starts inside the body there 1 mm outside it
+    /// (`lifted_out`). Returns a warning for each attachment with particles inside the body
+    /// or far from the skin ([`far_from_skin`]).
     pub fn bind_skins(&mut self, skins: Vec<Skin>) -> Result<Vec<String>, String> {
         let mut warnings = Vec::new();
         for PendingBinding {
@@ -318,8 +319,12 @@ impl Attachments {
             };
             let normals = skin.normals_of(vertices);
             let rests: Vec<Vec3> = particles.iter().map(|p| p.1).collect();
+            let (lifted, lift) = lifted_out(vertices, &skin.triangles, &rests);
+            if let Some(w) = lift.warning(&garment, &name) {
+                warnings.push(w);
+            }
             let mut distances = Vec::with_capacity(rests.len());
-            for (particle, rest) in particles {
+            for ((particle, _), rest) in particles.into_iter().zip(lifted) {
                 let (triangle, point, bary) = nearest_on(vertices, &skin.triangles, rest);
                 distances.push(point.distance(rest));
                 let corners = triangle.map(|i| vertices[i as usize]);
@@ -370,6 +375,50 @@ impl Attachments {
             }
         }
     }
+}
+
+/// Held particles that start inside the body they are bound to: how many, and the deepest.
+#[derive(Default)]
+struct Lift {
+    inside: usize,
+    deepest: f32,
+}
+
+impl Lift {
+    /// What the bake says of them, when there are any.
+    fn warning(&self, garment: &str, character: &str) -> Option<String> {
+        (self.inside > 0).then(|| {
+            format!(
+                "garment {garment:?}'s attachment to character {character:?}: {} of its particles start inside the body ({:.1} mm deep at the most); each is bound 1 mm outside the nearest skin instead, so it follows the body from outside",
+                self.inside,
+                self.deepest * 1e3
+            )
+        })
+    }
+}
+
+/// How far out of the body a held particle that starts inside it is bound [m].
+const LIFTED_CLEAR: f32 = 1e-3;
+
+/// `rests` with those inside the body (`triangles` on `vertices`, by the mesh metric's inside
+/// test) moved out along the nearest surface's normal to [`LIFTED_CLEAR`] outside it: a held particle follows its target and nothing pushes it out
+/// later, so one bound inside stays inside (a waistband voxelized a centimetre inward of the
+/// modelled band).
+fn lifted_out(vertices: &[Vec3], triangles: &[[u32; 3]], rests: &[Vec3]) -> (Vec<Vec3>, Lift) {
+    let surface = crate::collide::mesh::Surface::new(vertices, triangles);
+    let mut lift = Lift::default();
+    let lifted = (rests.iter())
+        .zip(surface.nearest_signed(rests))
+        .map(|(&rest, n)| {
+            if n.distance >= 0.0 {
+                return rest;
+            }
+            lift.inside += 1;
+            lift.deepest = lift.deepest.max(-n.distance);
+            n.point + n.normal * LIFTED_CLEAR
+        })
+        .collect();
+    (lifted, lift)
 }
 
 /// The nearest point of `triangles` (on `vertices`) to `p`: its triangle, the point and its
@@ -511,6 +560,58 @@ mod tests {
             far_from_skin(&[Vec3::ZERO], &[1.0]),
             None,
             "no spacing to judge by"
+        );
+    }
+
+    #[test]
+    fn a_held_particle_inside_the_body_is_bound_just_outside_it() {
+        // A closed 20 cm cube, its top face at y = 0.2, outward-facing triangles.
+        let v: Vec<Vec3> = (0..8)
+            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * 0.2)
+            .collect();
+        let triangles = vec![
+            [0, 4, 6],
+            [0, 6, 2],
+            [1, 3, 7],
+            [1, 7, 5], // x = 0, x = 0.2
+            [0, 1, 5],
+            [0, 5, 4],
+            [2, 6, 7],
+            [2, 7, 3], // y = 0, y = 0.2
+            [0, 2, 3],
+            [0, 3, 1],
+            [4, 5, 7],
+            [4, 7, 6], // z = 0, z = 0.2
+        ];
+        // One 3 mm below the top face (inside), one 2 cm above it.
+        let rests = [Vec3::new(0.1, 0.197, 0.1), Vec3::new(0.1, 0.22, 0.1)];
+        let mut attachments = Attachments {
+            pending: vec![PendingBinding {
+                garment: "band".into(),
+                character: "body".into(),
+                frame: 0,
+                bind_pose: false,
+                particles: vec![(0, rests[0]), (1, rests[1])],
+            }],
+            ..Attachments::default()
+        };
+        let skin = Skin::new("body".into(), triangles, vec![v.clone(), v], None);
+        let warnings = attachments.bind_skins(vec![skin]).unwrap();
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("1 of its particles start inside")
+                && warnings[0].contains("3.0 mm")
+        );
+        let at = |i: usize| attachments.position(&attachments.list[i], 0.0, 1.0);
+        assert!(
+            (at(0) - Vec3::new(0.1, 0.2 + LIFTED_CLEAR, 0.1)).length() < 1e-5,
+            "{}",
+            at(0)
+        );
+        assert!(
+            (at(1) - rests[1]).length() < 1e-5,
+            "outside: where it was, {}",
+            at(1)
         );
     }
 }
