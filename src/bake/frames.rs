@@ -493,7 +493,7 @@ fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
     let frames = &report.strain_limited_per_frame;
     let most = frames.iter().max_by_key(|f| f.springs)?;
     Some(format!(
-        "the strain limit ({:.0} %) pulled springs back in {} frames from frame {} (the most {} in frame {}): something drags or squeezes the cloth farther than it stretches (a body part where there is no room for it), and the cloth gives way to it there; mesh_penetrations_per_frame shows where it passes into a character",
+        "the strain limit ({} %) pulled springs back in {} frames from frame {} (the most {} in frame {}): something drags or squeezes the cloth farther than it stretches (a body part where there is no room for it), and the cloth gives way to it there; mesh_penetrations_per_frame shows where it passes into a character",
         limit * 100.0,
         frames.len(),
         frames[0].frame,

@@ -61,6 +61,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
                 field: "garments[].attachments".into(),
                 reason,
             })?;
+        sim.drivers.start_lifted(&mut sim.state);
     }
     Ok(Prepared {
         sim,

@@ -254,6 +254,18 @@ fn check_garments(scene: &Scene) -> std::result::Result<u64, Failure> {
     for (i, g) in scene.garments.iter().enumerate() {
         let at = |f: &str| format!("garments[{i}].{f}");
         particles = particles.saturating_add(validate_garment(g).map_err(|(f, r)| fail(at(f), r))?);
+        if let (Some(tear), Some(limit)) = (g.tear_strain, scene.solver.strain_limit) {
+            if tear >= limit {
+                return Err(fail(
+                    at("tear_strain"),
+                    format!(
+                        "{tear} would never be reached: solver.strain_limit pulls every \
+                         structural spring back to {limit} after each substep; set it below \
+                         the limit, or raise the limit"
+                    ),
+                ));
+            }
+        }
         let name = scene.garment_name(i);
         if let Some(reason) = bad_name(&name) {
             return Err(fail(at("name"), reason));

@@ -204,6 +204,9 @@ pub struct Attachments {
     pub skins: Vec<Skin>,
     /// Character attachments still to bind.
     pending: Vec<PendingBinding>,
+    /// Particles (storage order) that started inside the body and were bound outside it: the
+    /// bake starts them at their targets, so the first substep does not fling them out.
+    pub lifted: Vec<u32>,
 }
 
 /// A character attachment waiting for the character's skin.
@@ -324,7 +327,10 @@ impl Attachments {
                 warnings.push(w);
             }
             let mut distances = Vec::with_capacity(rests.len());
-            for ((particle, _), rest) in particles.into_iter().zip(lifted) {
+            for ((particle, first), rest) in particles.into_iter().zip(lifted) {
+                if rest != first {
+                    self.lifted.push(particle);
+                }
                 let (triangle, point, bary) = nearest_on(vertices, &skin.triangles, rest);
                 distances.push(point.distance(rest));
                 let corners = triangle.map(|i| vertices[i as usize]);
@@ -406,11 +412,17 @@ const LIFTED_CLEAR: f32 = 1e-3;
 /// modelled band).
 fn lifted_out(vertices: &[Vec3], triangles: &[[u32; 3]], rests: &[Vec3]) -> (Vec<Vec3>, Lift) {
     let surface = crate::collide::mesh::Surface::new(vertices, triangles);
+    // On an open mesh, as the metric does: inside only within its reach of the surface (far
+    // from it, a pseudonormal at a hole's rim says nothing of inside).
+    let reach = match surface.closed() {
+        true => f32::INFINITY,
+        false => crate::collide::mesh::REACH,
+    };
     let mut lift = Lift::default();
     let lifted = (rests.iter())
         .zip(surface.nearest_signed(rests))
         .map(|(&rest, n)| {
-            if n.distance >= 0.0 {
+            if n.distance >= 0.0 || -n.distance > reach {
                 return rest;
             }
             lift.inside += 1;
@@ -598,6 +610,11 @@ mod tests {
         let skin = Skin::new("body".into(), triangles, vec![v.clone(), v], None);
         let warnings = attachments.bind_skins(vec![skin]).unwrap();
         assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert_eq!(
+            attachments.lifted,
+            vec![0],
+            "the bake starts it at its target"
+        );
         assert!(
             warnings[0].contains("1 of its particles start inside")
                 && warnings[0].contains("3.0 mm")

@@ -158,6 +158,22 @@ impl Drivers {
         }
     }
 
+    /// Starts the attached particles that were bound outside the body they started in
+    /// ([`Attachments::lifted`]) at their targets now, so the first substep does not fling
+    /// them out (nor count that as the driven speed).
+    pub fn start_lifted(&self, state: &mut State) {
+        let (t, fps) = (self.clock.time(), self.clock.fps);
+        let lifted = &self.attachments.lifted;
+        for a in self
+            .attachments
+            .list
+            .iter()
+            .filter(|a| lifted.contains(&a.particle))
+        {
+            state.positions[a.particle as usize] = self.attachments.position(a, t, fps).extend(0.0);
+        }
+    }
+
     /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there
     /// (counted in the driven speed).
     pub(super) fn pose_colliders(&mut self, t: f32) {
