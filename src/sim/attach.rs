@@ -492,6 +492,20 @@ fn far_from_skin(rests: &[Vec3], distances: &[f32]) -> Option<String> {
 mod tests {
     use super::*;
 
+    /// Particles 0 and 1 at `rests`, waiting to bind to the skin of "body" at frame 0.
+    fn band_of_two(rests: [Vec3; 2]) -> Attachments {
+        Attachments {
+            pending: vec![PendingBinding {
+                garment: "band".into(),
+                character: "body".into(),
+                frame: 0,
+                bind_pose: false,
+                particles: vec![(0, rests[0]), (1, rests[1])],
+            }],
+            ..Attachments::default()
+        }
+    }
+
     /// A strip of two panels meeting along the z axis, each panel folded up by `angle` about
     /// it (a valley, like a hip crease closing).
     fn hinge(angle: f32) -> Vec<Vec3> {
@@ -515,16 +529,7 @@ mod tests {
         assert!(triangles.iter().all(|&t| up(t) > 0.0), "the strip faces +Y");
         // Two particles 3 cm above the skin, 1 cm either side of the crease.
         let rests = [Vec3::new(-0.01, 0.03, 0.0), Vec3::new(0.01, 0.03, 0.0)];
-        let mut attachments = Attachments {
-            pending: vec![PendingBinding {
-                garment: "band".into(),
-                character: "body".into(),
-                frame: 0,
-                bind_pose: false,
-                particles: vec![(0, rests[0]), (1, rests[1])],
-            }],
-            ..Attachments::default()
-        };
+        let mut attachments = band_of_two(rests);
         let skin = Skin::new("body".into(), triangles.clone(), frames.clone(), None);
         assert_eq!(
             attachments.bind_skins(vec![skin]).unwrap(),
@@ -597,16 +602,7 @@ mod tests {
         ];
         // One 3 mm below the top face (inside), one 2 cm above it.
         let rests = [Vec3::new(0.1, 0.197, 0.1), Vec3::new(0.1, 0.22, 0.1)];
-        let mut attachments = Attachments {
-            pending: vec![PendingBinding {
-                garment: "band".into(),
-                character: "body".into(),
-                frame: 0,
-                bind_pose: false,
-                particles: vec![(0, rests[0]), (1, rests[1])],
-            }],
-            ..Attachments::default()
-        };
+        let mut attachments = band_of_two(rests);
         let skin = Skin::new("body".into(), triangles, vec![v.clone(), v], None);
         let warnings = attachments.bind_skins(vec![skin]).unwrap();
         assert_eq!(warnings.len(), 1, "{warnings:?}");
