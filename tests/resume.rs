@@ -80,6 +80,7 @@ fn assert_same_frames(a: &serde_json::Value, b: &serde_json::Value) {
         "mesh_penetrations_per_frame",
         "worst_held_mesh_penetrations",
         "held_mesh_penetrations_per_frame",
+        "character_crossings_per_frame",
     ] {
         assert_eq!(a[field], b[field], "{field}");
     }

@@ -78,6 +78,9 @@ pub struct Measured {
     /// Absent in checkpoints of drape before the crossing count.
     #[serde(default)]
     pub crossings_per_frame: Vec<crate::report::FrameCrossings>,
+    /// Absent in checkpoints of drape before characters' own crossings were counted.
+    #[serde(default)]
+    pub character_crossings_per_frame: Vec<crate::report::FrameSelfCrossings>,
     /// Absent in checkpoints of drape before the strain limit.
     #[serde(default)]
     pub strain_limited_per_frame: Vec<crate::report::FrameStrainLimited>,

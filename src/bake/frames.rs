@@ -113,6 +113,11 @@ pub fn run(
         let held = sim.held_positions();
         let found = mesh_penetrations([&free, &held], (meshes, &probes), baked as usize - 1);
         measure_meshes(found, !held.is_empty(), frame, report);
+        let crossings = probes.self_crossings(meshes, baked as usize - 1);
+        if !crossings.is_empty() {
+            (report.character_crossings_per_frame)
+                .push(crate::report::FrameSelfCrossings { frame, crossings });
+        }
         if let Some(r) = &sim.residuals {
             progress.residuals.push(r.clone());
         }
@@ -197,6 +202,8 @@ fn sum_up(
     report.worst_penetrations = collider_penetrations(&progress.worst);
     let held = held_inside_warnings(report);
     report.warnings.extend(held);
+    let crossed = self_crossing_warnings(report);
+    report.warnings.extend(crossed);
     if let Some(limit) = sim.solver_settings().strain_limit {
         report
             .warnings
@@ -226,6 +233,7 @@ impl Measured {
             worst_held_mesh_penetrations: report.worst_held_mesh_penetrations.clone(),
             held_mesh_penetrations_per_frame: report.held_mesh_penetrations_per_frame.clone(),
             crossings_per_frame: report.crossings_per_frame.clone(),
+            character_crossings_per_frame: report.character_crossings_per_frame.clone(),
             strain_limited_per_frame: report.strain_limited_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
@@ -241,6 +249,7 @@ impl Measured {
         report.worst_held_mesh_penetrations = self.worst_held_mesh_penetrations;
         report.held_mesh_penetrations_per_frame = self.held_mesh_penetrations_per_frame;
         report.crossings_per_frame = self.crossings_per_frame;
+        report.character_crossings_per_frame = self.character_crossings_per_frame;
         report.strain_limited_per_frame = self.strain_limited_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
@@ -387,14 +396,30 @@ type Shown<'m> = (&'m BakeMeshes, &'m MeshProbes);
 
 /// Each character mesh's [`collide::mesh::Topology`], made once from its first frame (the
 /// characters' triangles never change, and vertices welded there ride the same skin).
-struct MeshProbes(Vec<collide::mesh::Topology>);
+/// Per character: its mesh's welding (for the penetration metric) and where its triangles lay
+/// when the bake started (for its crossings through itself).
+struct MeshProbes(
+    Vec<collide::mesh::Topology>,
+    Vec<collide::crossings::SelfCrossings>,
+);
 
 impl MeshProbes {
     fn new(meshes: &BakeMeshes) -> MeshProbes {
         let made = meshes
             .characters_at(0)
             .map(|(_, vertices, triangles)| collide::mesh::Topology::new(vertices, triangles));
-        MeshProbes(made.collect())
+        let rest = (meshes.characters_on(0)).map(|(_, vertices, triangles)| {
+            collide::crossings::SelfCrossings::new(vertices, triangles)
+        });
+        MeshProbes(made.collect(), rest.collect())
+    }
+
+    /// Each character's crossings through itself at baked frame `index` (none without
+    /// characters).
+    fn self_crossings(&self, meshes: &BakeMeshes, index: usize) -> Vec<usize> {
+        (meshes.characters_at(index).zip(&self.1))
+            .map(|((_, vertices, triangles), rest)| rest.count(vertices, triangles))
+            .collect()
     }
 }
 
@@ -523,6 +548,47 @@ fn held_inside_warnings(report: &Report) -> Vec<String> {
                 frames.len(),
                 frames.first().copied().unwrap_or_default()
             )
+        })
+        .collect()
+}
+
+/// A warning per character whose mesh passed through itself in frames that had garment
+/// particles deeper than half its shell radius inside it (issue 30's bar): cloth caught where
+/// one part of the body sinks into another has no place outside the mesh, so those
+/// penetrations are the animation's to fix.
+fn self_crossing_warnings(report: &Report) -> Vec<String> {
+    let deep_at = |c: usize, depth: f32| -> std::collections::BTreeSet<u32> {
+        let lists = [
+            &report.mesh_penetrations_per_frame,
+            &report.held_mesh_penetrations_per_frame,
+        ];
+        (lists.into_iter().flatten())
+            .filter(|f| f.deepest_m.get(c).is_some_and(|&d| d > depth))
+            .map(|f| f.frame)
+            .collect()
+    };
+    let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
+    (names.enumerate())
+        .filter_map(|(c, name)| {
+            let crossed: Vec<(u32, usize)> = (report.character_crossings_per_frame.iter())
+                .filter_map(|f| f.crossings.get(c).map(|&n| (f.frame, n)))
+                .filter(|&(_, n)| n > 0)
+                .collect();
+            let shell = report.characters.iter().find(|r| &r.name == name)?;
+            let depth = 0.5 * shell.shell_radius;
+            let deep = deep_at(c, depth);
+            let both = crossed.iter().filter(|(f, _)| deep.contains(f)).count();
+            if both == 0 {
+                return None;
+            }
+            let &(worst, most) = crossed.iter().max_by_key(|&&(f, n)| (n, std::cmp::Reverse(f)))?;
+            Some(format!(
+                "character {name}: its mesh passes through itself in {} frames from frame {} (the most {most} pairs of its triangles, in frame {worst}), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: one part of the body sinks into another there (a hand into a thigh), and cloth caught between them has no place outside the mesh; character_crossings_per_frame lists the frames",
+                crossed.len(),
+                crossed[0].0,
+                deep.len(),
+                depth * 1e3,
+            ))
         })
         .collect()
 }

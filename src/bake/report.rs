@@ -70,6 +70,7 @@ pub(super) fn empty_report(
         gpu_submissions_per_frame: None,
         mesh_penetrations_per_frame: Vec::new(),
         crossings_per_frame: Vec::new(),
+        character_crossings_per_frame: Vec::new(),
         torn_springs: 0,
         preroll: (scene.lead_in > 0).then(|| PrerollReport {
             frames: scene.lead_in,

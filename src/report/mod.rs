@@ -74,6 +74,13 @@ pub struct Report {
     pub held_mesh_penetrations_per_frame: Vec<FramePenetrations>,
     /// Every baked frame's pairs of garment triangles passing through each other.
     pub crossings_per_frame: Vec<FrameCrossings>,
+    /// Every baked frame's pairs of each character's own colliding triangles passing through
+    /// each other that lay apart where the bake started (in `worst_mesh_penetrations` order;
+    /// [`crate::collide::crossings::SelfCrossings`]): where one part of a body sinks into
+    /// another, cloth caught between them cannot stay outside the mesh. Empty without
+    /// characters.
+    #[serde(default)]
+    pub character_crossings_per_frame: Vec<FrameSelfCrossings>,
     /// The frames in which `solver.strain_limit` pulled springs back, with how many (each
     /// counted once per substep it was past the limit); empty without a limit or when it was
     /// never reached.
@@ -316,6 +323,14 @@ pub struct FrameMetrics {
 pub struct FrameCrossings {
     pub frame: u32,
     pub crossings: usize,
+}
+
+/// One frame's crossings of each character's mesh through itself
+/// ([`Report::character_crossings_per_frame`]).
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct FrameSelfCrossings {
+    pub frame: u32,
+    pub crossings: Vec<usize>,
 }
 
 /// A frame in which the strain limit pulled springs back.
