@@ -21,14 +21,7 @@ pub enum Backend {
 
 impl Backend {
     /// The GPU backend on `ctx`'s adapter, with `sim`'s model and state uploaded.
-    /// Refuses a strain limit, which the GPU does not apply.
     pub fn gpu(ctx: GpuContext, sim: &Simulation) -> Result<Backend> {
-        if sim.solver_settings().strain_limit.is_some() {
-            return Err(crate::Error::InvalidArgument {
-                flag: "backend".into(),
-                reason: "gpu: solver.strain_limit is applied on the CPU backend only; use `cpu` or `auto`".into(),
-            });
-        }
         Ok(Backend::Gpu(Box::new(GpuSimulation::new(ctx, sim)?)))
     }
 

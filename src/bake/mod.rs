@@ -390,21 +390,17 @@ fn shown_scene(scene: &Scene) -> Scene {
 }
 
 /// Where a scene runs: its `backend`, except that accuracy targets (which simulate frames
-/// again on the CPU) and a strain limit (applied on the CPU only) refuse `gpu` and make `auto`
-/// the CPU, with a warning.
+/// again on the CPU) refuse `gpu` and make `auto` the CPU, with a warning.
 fn backend_kind(
     scene: &Scene,
     targets: bool,
     warnings: &mut Vec<String>,
 ) -> Result<crate::scene::BackendKind> {
     use crate::scene::BackendKind;
-    let why = if targets {
-        "accuracy targets re-simulate frames on the CPU backend only"
-    } else if scene.solver.strain_limit.is_some() {
-        "solver.strain_limit is applied on the CPU backend only"
-    } else {
+    if !targets {
         return Ok(scene.backend);
-    };
+    }
+    let why = "accuracy targets re-simulate frames on the CPU backend only";
     match scene.backend {
         BackendKind::Cpu => Ok(BackendKind::Cpu),
         BackendKind::Gpu => Err(Error::InvalidArgument {

@@ -320,8 +320,12 @@ impl ParamSlots {
                     } else {
                         0
                     },
-                    // With force fields each substep predicts after its fields' `forces` stage.
-                    predict_next: (k + 1 < sim.substeps() && sim.forces().is_none()) as u32,
+                    // With force fields each substep predicts after its fields' `forces` stage;
+                    // with a strain limit, after the limit.
+                    predict_next: (k + 1 < sim.substeps()
+                        && sim.forces().is_none()
+                        && sim.solver_settings().strain_limit.is_none())
+                        as u32,
                     ..base
                 },
             );
@@ -367,9 +371,9 @@ impl ResidualGroup {
         let forces_work = if sim.forces().is_some() { n } else { 0 };
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            // Positions, velocities, residuals, the force fields' work per particle, and the
-            // keyframed targets' fastest motion.
-            size: (2 * n * 16 + 4 * sweeps_per_frame as usize + 4 * forces_work + 4) as u64,
+            // Positions, velocities, residuals, the force fields' work per particle, the springs
+            // the strain limit pulled back, and the keyframed targets' fastest motion.
+            size: (2 * n * 16 + 4 * sweeps_per_frame as usize + 4 * forces_work + 8) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });

@@ -120,6 +120,8 @@ pub struct Kernels {
     pub skin: Option<super::skin::SkinKernels>,
     /// Keyframed attachments and colliders posed for every substep of a frame.
     pub drive: super::drive::DriveKernel,
+    /// The strain limit after a substep.
+    pub limit: super::limit::LimitKernel,
 }
 
 /// The layout entries of a kernel file compiled with a bind group of its own (`skin.wgsl`,
@@ -299,6 +301,7 @@ impl Kernels {
             field_work_done: pipeline("field_work_done"),
             skin: shells.then(|| super::skin::SkinKernels::new(device)),
             drive: super::drive::DriveKernel::new(device),
+            limit: super::limit::LimitKernel::new(device, &group0),
             group0,
             group1,
             group2,

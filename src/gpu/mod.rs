@@ -7,6 +7,7 @@
 //! - [`fields`]: force fields' buffers;
 //! - [`skin`]: characters' shells placed from their meshes' vertices;
 //! - [`drive`]: keyframed attachments and colliders posed for every substep;
+//! - [`limit`]: the strain limit after each substep;
 //! - [`solver`]: a scene's buffers and the frame loop.
 
 pub mod buffers;
@@ -15,6 +16,7 @@ pub mod drive;
 pub mod fields;
 pub mod kernels;
 pub mod layout;
+pub mod limit;
 pub mod skin;
 pub mod solver;
 

@@ -36,6 +36,8 @@ pub struct GpuSimulation {
     skin: Option<super::skin::SkinMotion>,
     /// Keyframed attachments and colliders evaluated on the GPU (None without).
     keyframes: Option<super::drive::KeyframedMotion>,
+    /// The strain limit (None without).
+    limit: Option<super::limit::StrainLimit>,
     /// Keyframed attachments, at the head of each substep's targets (the rest ride skins).
     keyed_attachments: u32,
     /// Which shells `skin` places (the CPU sends no snapshots of them).
@@ -211,6 +213,9 @@ impl GpuSimulation {
             .and_then(|k| super::skin::SkinMotion::new(device, k, sim, &contact));
         let keyframes =
             super::drive::KeyframedMotion::new(device, &kernels.drive, sim, &state, &contact);
+        let limit = (sim.solver_settings().strain_limit).map(|strain| {
+            super::limit::StrainLimit::new(device, &kernels.limit, sim.limit_order(), strain)
+        });
         let keyed_attachments = sim.drivers.attachments.keyframed_count() as u32;
         let placed_on_gpu = if skin.is_some() {
             super::skin::placed_on_gpu(sim)
@@ -248,6 +253,7 @@ impl GpuSimulation {
             fields,
             skin,
             keyframes,
+            limit,
             keyed_attachments,
             placed_on_gpu,
         })
@@ -299,7 +305,9 @@ impl GpuSimulation {
             residuals,
             force_work,
             stage_times,
+            strain_limited,
         } = frame;
+        *strain_limited = 0;
         // Where the attached particles go this frame, substep by substep.
         let static_shells = !self.static_shells_uploaded;
         let driven = drivers.drive_frame(
@@ -341,8 +349,14 @@ impl GpuSimulation {
             let size = fields.work.size().min(self.particles as u64 * 4);
             encoder.copy_buffer_to_buffer(&fields.work, 0, &self.residual.readback, work_at, size);
         }
-        // The keyframed targets' fastest motion, in the readback's last word.
+        // The springs the strain limit pulled back, then the keyframed targets' fastest
+        // motion, in the readback's last two words.
         let speed_at = self.residual.readback.size() - 4;
+        let limited_at = speed_at - 4;
+        if let Some(limit) = &self.limit {
+            let readback = &self.residual.readback;
+            encoder.copy_buffer_to_buffer(&limit.pulled, 0, readback, limited_at, 4);
+        }
         if let Some(keyframes) = &self.keyframes {
             let readback = &self.residual.readback;
             encoder.copy_buffer_to_buffer(&keyframes.speed, 0, readback, speed_at, 4);
@@ -378,6 +392,11 @@ impl GpuSimulation {
                 let values: &[f32] = bytemuck::cast_slice(&view[2 * n as usize..work_at as usize]);
                 r.clear();
                 r.extend(values.iter().map(|&e| e as f64));
+            }
+            if self.limit.is_some() {
+                let at = limited_at as usize;
+                let pulled: u32 = bytemuck::pod_read_unaligned(&view[at..at + 4]);
+                *strain_limited = pulled as u64;
             }
             if self.keyframes.is_some() {
                 let at = speed_at as usize;
@@ -527,6 +546,9 @@ impl GpuSimulation {
         if let Some(fields) = &self.fields {
             encoder.clear_buffer(&fields.work, 0, None);
         }
+        if let Some(limit) = &self.limit {
+            encoder.clear_buffer(&limit.pulled, 0, None);
+        }
         if let Some(skin) = &self.skin {
             let recorded = skin.record(&mut encoder);
             self.dispatches.set(self.dispatches.get() + recorded);
@@ -630,6 +652,16 @@ impl GpuSimulation {
                         if self.fields.is_some() && integrating {
                             let slot = self.state.finish_slots + substep;
                             dispatch(&mut pass, &k.field_work_done, slot, n, GROUP);
+                        }
+                        if let Some(limit) = &self.limit {
+                            // One workgroup runs all of the substep's sweeps.
+                            pass.set_bind_group(super::limit::GROUP_INDEX, &limit.group, &[]);
+                            dispatch(&mut pass, &limit.pipeline, PARAMS_NEXT, 1, 1);
+                            // `finish` left the next substep's prediction to this.
+                            let next = substep + 1 < self.substeps;
+                            if next && integrating && self.fields.is_none() {
+                                dispatch(&mut pass, &k.predict, PARAMS_NEXT, n, GROUP);
+                            }
                         }
                     }
                 }

@@ -12,7 +12,7 @@ pub mod constraint;
 pub mod drivers;
 pub mod forces;
 pub mod integrate;
-mod limit;
+pub mod limit;
 pub mod metrics;
 pub mod model;
 pub mod schedule;
@@ -68,6 +68,8 @@ pub struct Simulation {
     /// Springs the strain limit pulled back in the last frame stepped, each counted once per
     /// substep it was past the limit (`solver.strain_limit`).
     pub strain_limited: u64,
+    /// The structural springs in the strain limit's sweep order (empty without a limit).
+    limit_order: limit::LimitOrder,
 }
 
 /// What a backend that runs whole frames elsewhere (the GPU) drives and writes back: the
@@ -83,6 +85,8 @@ pub struct FrameParts<'a> {
     /// of each frame's.
     pub force_work: &'a mut f64,
     pub stage_times: &'a mut schedule::StageTimes,
+    /// Springs the strain limit pulled back in the frame (see [`Simulation::strain_limited`]).
+    pub strain_limited: &'a mut u64,
 }
 
 impl Simulation {
@@ -158,6 +162,7 @@ impl Simulation {
             stage_times: schedule::StageTimes::default(),
             sharing: team::Sharing::default(),
             strain_limited: 0,
+            limit_order: limit_order(&model, &solver.settings),
             model,
             state,
             solver,
@@ -192,6 +197,7 @@ impl Simulation {
     /// particle storage order stays the same).
     fn rebuild_model(&mut self) {
         self.model = Model::new(&self.tearing.garments);
+        self.limit_order = limit_order(&self.model, &self.solver.settings);
         self.solver = Solver::new(
             &self.model,
             self.solver.settings.clone(),
@@ -390,7 +396,8 @@ impl Simulation {
         }
         if let Some(most) = self.solver.settings.strain_limit {
             let start = std::time::Instant::now();
-            let pulled = limit::limit_strain(&self.model, &mut self.state, most, clock.step);
+            let order = &self.limit_order;
+            let pulled = limit::limit_strain(&self.model, order, &mut self.state, most, clock.step);
             self.strain_limited += pulled as u64;
             self.stage_times.lap(schedule::Stage::Finish.timed(), start);
         }
@@ -494,6 +501,7 @@ impl Simulation {
             residuals: self.residuals.as_mut(),
             force_work: &mut self.fields.work,
             stage_times: &mut self.stage_times,
+            strain_limited: &mut self.strain_limited,
         }
     }
 
@@ -601,6 +609,11 @@ impl Simulation {
     }
 
     /// The static model (read-only: the solver validated it once).
+    /// The structural springs in the strain limit's sweep order (empty without a limit).
+    pub fn limit_order(&self) -> &limit::LimitOrder {
+        &self.limit_order
+    }
+
     pub fn model(&self) -> &Model {
         &self.model
     }
@@ -771,5 +784,13 @@ impl Region<'_> {
             }
         });
         (stats, times.into_inner().expect("not poisoned"))
+    }
+}
+
+/// The strain limit's sweep order for `model`, when `settings` ask for a limit.
+fn limit_order(model: &Model, settings: &SolverSettings) -> limit::LimitOrder {
+    match settings.strain_limit {
+        Some(_) => limit::LimitOrder::new(model),
+        None => limit::LimitOrder::default(),
     }
 }
