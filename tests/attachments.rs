@@ -158,6 +158,64 @@ fn particles_tied_to_the_skin_ride_it() {
 }
 
 #[test]
+fn the_gpu_rides_the_skin_as_the_cpu_does() {
+    // The sleeve on the mannequin's rising forearm on both backends, 30 frames: the GPU places
+    // the targets that ride the skin itself, from the ridden vertices of the character frames
+    // each frame spans, and they land where the CPU puts them, frame after frame, with the
+    // skin's speed measured alike.
+    let Some(ctx) = common::gpu_context() else {
+        return;
+    };
+    let body = std::env::current_dir()
+        .unwrap()
+        .join("characters/mannequin/raise_arms");
+    let text = format!(
+        r#"{{ "frames": 30, "substeps": 10, "backend": "gpu",
+              "garments": [{{ "name": "sleeve", "resolution": [6, 6], "size": [0.08, 0.08], "position": [0.33, 1.12, 0.0],
+                              "rotation": [0, 0, 90],
+                              "attachments": [{{ "particles": "top_edge", "character": "body" }}] }}],
+              "characters": [{{ "name": "body", "file": {:?}, "sequence_fps": 12 }}] }}"#,
+        body.display().to_string()
+    );
+    let dir = common::temp_dir();
+    let scene = common::scene(&text);
+    let mut cpu = common::simulation(&scene, dir.path());
+    let mut on_gpu = common::simulation(&scene, dir.path());
+    let mut gpu = drape::gpu::GpuSimulation::new(ctx, &on_gpu).expect("GPU simulation");
+    let riding: Vec<usize> = (on_gpu.drivers.attachments.riding().iter())
+        .map(|r| r.particle as usize)
+        .collect();
+    assert_eq!(riding.len(), 6, "the sleeve's top edge rides the skin");
+    let start: Vec<Vec3> = riding
+        .iter()
+        .map(|&i| cpu.state.positions[i].truncate())
+        .collect();
+    let (mut apart, mut carried) = (0.0f32, 0.0f32);
+    for frame in 1..=scene.frames {
+        cpu.step_frame();
+        gpu.step_frame(on_gpu.frame_parts()).expect("GPU frame");
+        for (&i, s) in riding.iter().zip(&start) {
+            let (a, b) = (cpu.state.positions[i], on_gpu.state.positions[i]);
+            apart = apart.max(a.truncate().distance(b.truncate()));
+            carried = carried.max(a.truncate().distance(*s));
+        }
+        assert!(apart < 1e-5, "frame {frame}: targets {apart} m apart");
+    }
+    eprintln!("skin targets: CPU and GPU at most {apart:.2e} m apart, carried {carried} m");
+    assert!(
+        carried > 0.1,
+        "the forearm carried the sleeve only {carried} m"
+    );
+    let gap = common::largest_gap(&cpu, &on_gpu);
+    assert!(gap < 1e-4, "the sleeves {gap} m apart");
+    let (a, b) = (cpu.driven_energy(), on_gpu.driven_energy());
+    assert!(
+        a > 0.0 && (a - b).abs() <= 1e-3 * a,
+        "driven energy {b} J on the GPU, {a} J on the CPU"
+    );
+}
+
+#[test]
 fn particles_near_a_point_are_selected_by_distance() {
     // A 1 m sheet of 11 × 11 (0.1 m spacing) at y = 1: a ball of 0.15 m at its corner holds the
     // corner, its two axis neighbours and its diagonal neighbour (0.141 m), nothing else.
@@ -252,10 +310,10 @@ fn the_gpu_carries_the_curtain_as_the_cpu_does() {
         on_gpu.driven_energy() > 0.0,
         "the rail's motion counts as supplied energy"
     );
-    // The GPU evaluates the rail's keyframes itself: a frame uploads where it starts (32
+    // The GPU evaluates the rail's keyframes itself: a frame uploads where it starts (48
     // bytes), not a target per attached particle and substep, and measures the rail's speed as
     // the CPU does.
-    assert_eq!(gpu.uploaded_last_frame(), 32, "bytes uploaded per frame");
+    assert_eq!(gpu.uploaded_last_frame(), 48, "bytes uploaded per frame");
     let (a, b) = (cpu.driven_energy(), on_gpu.driven_energy());
     assert!(
         (a - b).abs() <= 1e-4 * a,

@@ -291,9 +291,9 @@ fn moving_and_turned_colliders_match() {
         assert_eq!(a.shape, b.shape);
         assert_eq!(a.moved, b.moved);
     }
-    // The GPU poses the colliders itself (a frame uploads where it starts, 32 bytes) and
+    // The GPU poses the colliders itself (a frame uploads where it starts, 48 bytes) and
     // measures their speed as the CPU does.
-    assert_eq!(gpu.uploaded_last_frame(), 32, "bytes uploaded per frame");
+    assert_eq!(gpu.uploaded_last_frame(), 48, "bytes uploaded per frame");
     let (a, b) = (cpu.driven_energy(), on_gpu.driven_energy());
     assert!(
         (a - b).abs() <= 1e-4 * a,

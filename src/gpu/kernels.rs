@@ -148,6 +148,84 @@ pub fn own_group_entries(count: u32, last_read_only: u32) -> Vec<wgpu::BindGroup
         .collect()
 }
 
+/// A kernel file compiled with a bind group of its own (`skin.wgsl`, `drive.wgsl`,
+/// `limit.wgsl`): the group's layout and one pipeline per entry point.
+#[derive(Clone)]
+pub struct OwnGroup {
+    pub layout: wgpu::BindGroupLayout,
+    pub pipelines: Vec<wgpu::ComputePipeline>,
+}
+
+/// What an [`OwnGroup`] is compiled from.
+pub struct OwnGroupFile<'a> {
+    /// The pipelines' and layouts' label ("drape skin").
+    pub label: &'a str,
+    /// The file's name, the module's label.
+    pub file: &'a str,
+    pub source: &'a str,
+    pub entries: &'a [&'a str],
+    /// Its bindings, laid out by [`own_group_entries`].
+    pub bindings: u32,
+    pub last_read_only: u32,
+    /// The layouts of the groups before its own (None for a group it leaves unbound): its own
+    /// group is number `before.len()`.
+    pub before: &'a [Option<&'a wgpu::BindGroupLayout>],
+}
+
+impl OwnGroup {
+    pub fn new(device: &wgpu::Device, file: &OwnGroupFile) -> OwnGroup {
+        let entries = own_group_entries(file.bindings, file.last_read_only);
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(file.label),
+            entries: &entries,
+        });
+        let mut groups = file.before.to_vec();
+        groups.push(Some(&layout));
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(file.label),
+            bind_group_layouts: &groups,
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(file.file),
+            source: wgpu::ShaderSource::Wgsl(file.source.into()),
+        });
+        let pipelines = (file.entries.iter())
+            .map(|entry| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            })
+            .collect();
+        OwnGroup { layout, pipelines }
+    }
+
+    /// A bind group of this layout binding each of `buffers` whole, in binding order.
+    pub fn bind(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        buffers: &[&wgpu::Buffer],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+}
+
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,

@@ -46,36 +46,25 @@ pub const MIRRORS: [(&str, usize); 1] = [("Limit", std::mem::size_of::<GpuLimit>
 /// The kernel and its bind group layout, built once per device.
 #[derive(Clone)]
 pub struct LimitKernel {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    own: super::kernels::OwnGroup,
 }
 
 impl LimitKernel {
     /// The kernel, reading group 0 through `group0` (the other kernels' state and model).
     pub fn new(device: &wgpu::Device, group0: &wgpu::BindGroupLayout) -> LimitKernel {
-        let entries = super::kernels::own_group_entries(BINDINGS.len() as u32, LAST_READ_ONLY);
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("drape strain limit"),
-            entries: &entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("drape strain limit"),
-            bind_group_layouts: &[Some(group0), None, None, Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("limit.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source().into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(ENTRY),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some(ENTRY),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        LimitKernel { layout, pipeline }
+        let source = source();
+        let file = super::kernels::OwnGroupFile {
+            label: "drape strain limit",
+            file: "limit.wgsl",
+            source: &source,
+            entries: &[ENTRY],
+            bindings: BINDINGS.len() as u32,
+            last_read_only: LAST_READ_ONLY,
+            before: &[Some(group0), None, None],
+        };
+        LimitKernel {
+            own: super::kernels::OwnGroup::new(device, &file),
+        }
     }
 }
 
@@ -122,20 +111,10 @@ impl StrainLimit {
         );
         let pulled = init(device, "limit_pulled", &[0u8; 4], RW);
         let resources = [&uniform, &colour_start, &springs, &pulled];
-        let entries: Vec<wgpu::BindGroupEntry> = (resources.iter().enumerate())
-            .map(|(binding, b)| wgpu::BindGroupEntry {
-                binding: binding as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("drape strain limit"),
-            layout: &kernel.layout,
-            entries: &entries,
-        });
+        let group = kernel.own.bind(device, "drape strain limit", &resources);
         StrainLimit {
             group,
-            pipeline: kernel.pipeline.clone(),
+            pipeline: kernel.own.pipelines[0].clone(),
             pulled,
         }
     }

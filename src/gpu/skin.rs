@@ -118,40 +118,23 @@ const GROUP: u32 = 64;
 /// The skin kernels and their bind group layout, built once per device.
 #[derive(Clone)]
 pub struct SkinKernels {
-    layout: wgpu::BindGroupLayout,
-    pipelines: Vec<wgpu::ComputePipeline>,
+    own: super::kernels::OwnGroup,
 }
 
 impl SkinKernels {
     pub fn new(device: &wgpu::Device) -> SkinKernels {
-        let entries = super::kernels::own_group_entries(BINDINGS.len() as u32, LAST_READ_ONLY);
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("drape skin"),
-            entries: &entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("drape skin"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("skin.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SOURCE.into()),
-        });
-        let pipelines = ENTRIES
-            .iter()
-            .map(|entry| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-            .collect();
-        SkinKernels { layout, pipelines }
+        let file = super::kernels::OwnGroupFile {
+            label: "drape skin",
+            file: "skin.wgsl",
+            source: SOURCE,
+            entries: &ENTRIES,
+            bindings: BINDINGS.len() as u32,
+            last_read_only: LAST_READ_ONLY,
+            before: &[],
+        };
+        SkinKernels {
+            own: super::kernels::OwnGroup::new(device, &file),
+        }
     }
 }
 
@@ -341,24 +324,14 @@ impl SkinMotion {
             &cursors,
             &slot_normal,
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = (resources.iter().enumerate())
-            .map(|(binding, b)| wgpu::BindGroupEntry {
-                binding: binding as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("drape skin"),
-            layout: &kernels.layout,
-            entries: &entries,
-        });
+        let group = kernels.own.bind(device, "drape skin", &resources);
         let widest = (infos.iter()).fold((0, 0, 0), |(c, t, w), i| {
             (c.max(i.count), t.max(i.table + 1), w.max(i.slots))
         });
         Some(SkinMotion {
             group,
             gathered,
-            pipelines: kernels.pipelines.clone(),
+            pipelines: kernels.own.pipelines.clone(),
             times,
             window,
             held: vec![[None; SLOTS]; resident.len()],

@@ -34,12 +34,11 @@ pub struct GpuSimulation {
     fields: Option<super::fields::FieldGroup>,
     /// Moving characters' shells placed on the GPU from their meshes (None without).
     skin: Option<super::skin::SkinMotion>,
-    /// Keyframed attachments and colliders evaluated on the GPU (None without).
-    keyframes: Option<super::drive::KeyframedMotion>,
+    /// Keyframed attachments and colliders and the attachments that ride skins, evaluated on
+    /// the GPU (None without).
+    keyframes: Option<super::drive::DrivenMotion>,
     /// The strain limit (None without).
     limit: Option<super::limit::StrainLimit>,
-    /// Keyframed attachments, at the head of each substep's targets (the rest ride skins).
-    keyed_attachments: u32,
     /// Which shells `skin` places (the CPU sends no snapshots of them).
     placed_on_gpu: Vec<bool>,
     /// Timestamps between the stages of a frame, when the device has them.
@@ -212,11 +211,10 @@ impl GpuSimulation {
         let skin = (kernels.skin.as_ref())
             .and_then(|k| super::skin::SkinMotion::new(device, k, sim, &contact));
         let keyframes =
-            super::drive::KeyframedMotion::new(device, &kernels.drive, sim, &state, &contact);
+            super::drive::DrivenMotion::new(device, &kernels.drive, sim, &state, &contact);
         let limit = (sim.solver_settings().strain_limit).map(|strain| {
             super::limit::StrainLimit::new(device, &kernels.limit, sim.limit_order(), strain)
         });
-        let keyed_attachments = sim.drivers.attachments.keyframed_count() as u32;
         let placed_on_gpu = if skin.is_some() {
             super::skin::placed_on_gpu(sim)
         } else {
@@ -254,7 +252,6 @@ impl GpuSimulation {
             skin,
             keyframes,
             limit,
-            keyed_attachments,
             placed_on_gpu,
         })
     }
@@ -272,7 +269,8 @@ impl GpuSimulation {
     }
 
     /// Bytes written to the GPU for the last frame: what the CPU computed that the kernels read
-    /// (targets of attachments that ride skins, characters' shells, where the frame starts).
+    /// (characters' shells it does not place itself, where the frame starts, the ridden
+    /// vertices of the character frames it spans).
     pub fn uploaded_last_frame(&self) -> u64 {
         self.uploaded_last_frame
     }
@@ -308,10 +306,9 @@ impl GpuSimulation {
             strain_limited,
         } = frame;
         *strain_limited = 0;
-        // Where the attached particles go this frame, substep by substep.
+        // The shells the GPU does not place itself, substep by substep.
         let static_shells = !self.static_shells_uploaded;
         let driven = drivers.drive_frame(
-            state,
             contact_reach,
             static_shells,
             &self.placed_on_gpu,
@@ -327,7 +324,9 @@ impl GpuSimulation {
             self.uploaded_last_frame += fields.upload(&self.ctx.queue, self.substeps, first);
         }
         if let Some(keyframes) = &self.keyframes {
-            self.uploaded_last_frame += keyframes.upload(&self.ctx.queue, first);
+            let (attachments, clock) = (&drivers.attachments, &drivers.clock);
+            self.uploaded_last_frame +=
+                keyframes.upload(&self.ctx.queue, attachments, clock, first);
         }
         let encoder = self.record_frame(residuals.is_some());
         let n = self.particles as u64 * 16;
@@ -486,9 +485,8 @@ impl GpuSimulation {
         Ok(bytes)
     }
 
-    /// Writes what the CPU computed for the frame `driven` describes (the targets of
-    /// attachments that ride a skin, the shells of every substep where the kernels read them);
-    /// returns the bytes.
+    /// Writes what the CPU computed for the frame `driven` describes (the shells of every
+    /// substep where the kernels read them); returns the bytes.
     fn upload(&mut self, driven: &crate::sim::DrivenFrame) -> u64 {
         let queue = &self.ctx.queue;
         let mut uploaded = 0u64;
@@ -496,19 +494,6 @@ impl GpuSimulation {
             queue.write_buffer(buffer, offset, bytes);
             uploaded += bytes.len() as u64;
         };
-        // The targets that ride a skin, after each substep's keyframed ones (the GPU's).
-        let (attached, keyed) = (self.contact.attached, self.keyed_attachments);
-        if attached > keyed {
-            for (substep, targets) in driven.attachments.iter().enumerate() {
-                let targets: Vec<Vec4> = targets.iter().map(|(_, t)| t.extend(0.0)).collect();
-                let at = 16 * (substep as u64 * attached as u64 + keyed as u64);
-                upload(
-                    &self.contact.attach_target,
-                    at,
-                    bytemuck::cast_slice(&targets),
-                );
-            }
-        }
         // Each shell's entries of each substep where the kernels read them; a shell that never
         // moves once, into the first substep's share, with the first frame (the kernels read
         // it there in every substep of every frame).

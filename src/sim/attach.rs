@@ -158,10 +158,21 @@ impl Skin {
 
     /// Frames `k` and `j` around fractional frame `f` and the weight of `j` (held after the
     /// last).
-    fn span(&self, f: f32) -> (usize, usize, f32) {
+    pub fn span(&self, f: f32) -> (usize, usize, f32) {
         let k = (f.floor().max(0.0) as usize).min(self.frames.len() - 1);
         let j = (k + 1).min(self.frames.len() - 1);
         (k, j, (f - k as f32).clamp(0.0, 1.0))
+    }
+
+    /// How many vertices targets ride ([`Skin::ride`]).
+    pub fn ridden_count(&self) -> usize {
+        self.ridden.len()
+    }
+
+    /// Frame `frame`'s ridden vertices, ascending: position and smooth normal of each.
+    pub fn ridden_at(&self, frame: usize) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
+        (self.ridden.iter().zip(&self.normals[frame]))
+            .map(move |(&v, &n)| (self.frames[frame][v as usize], n))
     }
 
     /// The point at `bary` on `triangle` and the skin's frame there at fractional frame `f`.
@@ -193,6 +204,18 @@ fn surface_frame(corners: [Vec3; 3], normals: [Vec3; 3], bary: Vec3) -> (Vec3, [
     let edge = b - a;
     let e = (edge - n * edge.dot(n)).normalize_or(n.any_orthonormal_vector());
     (a * bary.x + b * bary.y + c * bary.z, [e, n.cross(e), n])
+}
+
+/// An attachment that rides a skin, as a backend that places it itself reads it: its
+/// triangle's corners are indices into the skin's ridden vertices ([`Skin::ridden_at`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Riding {
+    pub particle: u32,
+    pub skin: u32,
+    pub corners: [u32; 3],
+    pub bary: Vec3,
+    /// The offset in the skin's frame at the point (tangent, bitangent, normal) [m].
+    pub offset: Vec3,
 }
 
 /// Every attachment of a simulation, with the motions and skins they follow.
@@ -270,6 +293,32 @@ impl Attachments {
             .filter_map(|a| match a.target {
                 Target::Keyframed { track, rest } => Some((a.particle, track, rest)),
                 Target::Surface { .. } => None,
+            })
+            .collect()
+    }
+
+    /// The attachments that ride skins, in [`Attachments::list`]'s order (after the keyframed
+    /// ones).
+    pub fn riding(&self) -> Vec<Riding> {
+        (self.list[self.keyframed_count()..].iter())
+            .filter_map(|a| match a.target {
+                Target::Surface {
+                    mesh,
+                    triangle,
+                    bary,
+                    offset,
+                } => {
+                    let ridden = &self.skins[mesh].ridden;
+                    let corner = |v: u32| ridden.binary_search(&v).expect("a ridden vertex") as u32;
+                    Some(Riding {
+                        particle: a.particle,
+                        skin: mesh as u32,
+                        corners: triangle.map(corner),
+                        bary,
+                        offset,
+                    })
+                }
+                Target::Keyframed { .. } => None,
             })
             .collect()
     }

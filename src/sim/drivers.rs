@@ -47,7 +47,12 @@ pub struct Clock {
 impl Clock {
     /// The time at the end of the coming substep [s].
     pub(super) fn next_time(&self) -> f32 {
-        (self.elapsed + 1) as f32 / (self.substeps as f32 * self.fps)
+        self.end_of(self.elapsed)
+    }
+
+    /// The time at the end of substep `substep`, counted from the bake's start [s].
+    pub fn end_of(&self, substep: u64) -> f32 {
+        (substep + 1) as f32 / (self.substeps as f32 * self.fps)
     }
 
     /// The time now [s].
@@ -80,9 +85,6 @@ pub struct Focus {
 /// [`Drivers::drive_frame`]).
 #[derive(Clone, Debug, Default)]
 pub struct DrivenFrame {
-    /// Per substep: each attached particle that rides a skin (storage index), and its target
-    /// [m], in [`Attachments::list`]'s order after its keyframed ones.
-    pub attachments: Vec<Vec<(u32, Vec3)>>,
     /// Per substep, per character shell: [`ShellCollider::gpu_snapshot`] (None for a shell
     /// that never moves, unless asked for, then with the first substep only: the GPU keeps it
     /// from its first upload; and None for a shell the GPU places itself).
@@ -227,20 +229,18 @@ impl Drivers {
         }
     }
 
-    /// Where the attached particles that ride a skin go (storage index, target) at the end of
-    /// each substep of the next frame, substep by substep; advances the clock by a frame as if
-    /// it ran, leaving the keyframed colliders in their last pose: for a backend that runs the
-    /// frame elsewhere (the GPU) and copies the state back. That backend evaluates the
-    /// keyframed attachments and colliders of each substep itself, and adds their fastest
-    /// motion to the driven speed ([`Drivers::note_driven_speed`]). `static_shells`: include the
-    /// shells that never move too, with the first substep (the GPU needs them once). The shells
-    /// marked in `placed_elsewhere` (the GPU places them from their skins) have no snapshots:
-    /// they are moved over the whole frame at once. `state`: where the attached particles are
-    /// now; `reach`: the largest contact radius the shells are gridded for; the shells' time
-    /// goes to `times`.
+    /// The characters' shells of each substep of the next frame that the GPU does not place
+    /// itself; advances the clock by a frame as if it ran, leaving the keyframed colliders in
+    /// their last pose: for a backend that runs the frame elsewhere (the GPU) and copies the
+    /// state back. That backend evaluates the keyframed attachments and colliders and the
+    /// attachments that ride skins itself, and adds their fastest motion to the driven speed
+    /// ([`Drivers::note_driven_speed`]). `static_shells`: include the shells that never move
+    /// too, with the first substep (the GPU needs them once). The shells marked in
+    /// `placed_elsewhere` (the GPU places them from their skins) have no snapshots: they are
+    /// moved over the whole frame at once. `reach`: the largest contact radius the shells are
+    /// gridded for; the shells' time goes to `times`.
     pub fn drive_frame(
         &mut self,
-        state: &State,
         reach: f32,
         static_shells: bool,
         placed_elsewhere: &[bool],
@@ -254,11 +254,6 @@ impl Drivers {
         let start = std::time::Instant::now();
         self.advance_shells_over_frame(placed_elsewhere, reach);
         times.lap(schedule::timed("shells"), start);
-        let keyed = self.attachments.keyframed_count();
-        let riding = keyed..self.attachments.list.len();
-        let mut last: Vec<Vec3> = (self.attachments.list[riding.clone()].iter())
-            .map(|a| state.positions[a.particle as usize].truncate())
-            .collect();
         for substep in 0..self.clock.substeps {
             let start = std::time::Instant::now();
             self.advance_shells_but(placed_elsewhere, reach);
@@ -274,19 +269,6 @@ impl Drivers {
                     .collect(),
             );
             times.lap(schedule::timed("shells"), start);
-            let t = self.clock.next_time();
-            let (step, fps) = (self.clock.step, self.clock.fps);
-            frame.attachments.push(
-                (self.attachments.list[riding.clone()].iter().zip(&mut last))
-                    .map(|(a, last)| {
-                        let target = self.attachments.position(a, t, fps);
-                        let speed = target.distance(*last) / step;
-                        self.driven_speed = self.driven_speed.max(speed);
-                        *last = target;
-                        (a.particle, target)
-                    })
-                    .collect(),
-            );
             if substep + 1 == self.clock.substeps {
                 // The last pose, and the motion of the last substep into it, as the CPU
                 // leaves them (at the bake's start the colliders are at rest); their speed
@@ -294,7 +276,7 @@ impl Drivers {
                 if self.clock.elapsed > 0 {
                     self.set_collider_poses(self.clock.time());
                 }
-                self.set_collider_poses(t);
+                self.set_collider_poses(self.clock.next_time());
             }
             self.clock.elapsed += 1;
         }
