@@ -71,7 +71,7 @@ fn quat_rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
 
 // Particle–particle collisions: constants (uniform) of the hash grid.
 struct Contacts {
-    inv_cell: f32,             // 1 / cell width = 0.5 / particle radius
+    inv_cell: f32,             // 1 / cell width = 0.25 / particle radius
     diameter: f32,             // particles keep this far apart [m]
     table: u32,                // hash buckets (a power of two)
     enabled: u32,              // 0: no particle collisions (the buffers are placeholders)
@@ -138,7 +138,7 @@ const KIND_WEDGE: u32 = 5u;
 @group(0) @binding(12) var<storage, read> tethers: array<Tether>;
 @group(0) @binding(13) var<storage, read> colliders: array<Collider>;
 
-// Particle–particle collisions (src/collide/particles.rs): per particle (lattice cell xyz,
+// Particle–particle collisions (src/collide/particles/): per particle (lattice cell xyz,
 // garment w), its bucket, the buckets' starts, a scatter cursor, particles sorted by bucket, and
 // each particle's push of the substep.
 @group(2) @binding(0) var<uniform> contacts: Contacts;

@@ -1,10 +1,11 @@
-// Particle–particle collisions on the GPU, the same steps as src/collide/particles.rs: after the
-// solve, the predicted positions q = x + Δ are sorted into a hash grid of cells one particle
-// diameter wide (a counting sort: count, one-workgroup scan, scatter), each bucket's particles
-// are put in ascending order (the scatter's atomics leave them in any order, and the order sets
-// the order of the sums below: with it, runs are repeatable and match the CPU), and every
-// particle moves by the mean of its pushes out of the particles it overlaps, all from the same q
-// (Jacobi).
+// Particle–particle collisions on the GPU, the pushes of src/collide/particles/: after the
+// solve, the predicted positions q = x + Δ are sorted into a hash grid of cells two particle
+// diameters wide, every substep (a counting sort: count, one-workgroup scan, scatter; the CPU
+// keeps neighbour lists between substeps instead), each bucket's particles are put in ascending
+// order (the scatter's atomics leave them in any order, and the order sets the order of the sums
+// below: with it, runs are repeatable; the CPU sums in ascending order over all buckets, so the
+// two agree to rounding), and every particle moves by the mean of its pushes out of the
+// particles it overlaps, all from the same q (Jacobi).
 // `finish` adds the push to Δ.
 
 const SKIP_STEPS: i32 = 1;
@@ -137,8 +138,8 @@ fn pc_push_out(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let qi = x[i] + delta[i];
-    // Every particle closer than a diameter lies in the 2 × 2 × 2 cells on the sides of the
-    // cell `qi` is nearest to.
+    // Cells are two diameters wide, so every particle closer than a diameter lies in the
+    // 2 × 2 × 2 cells on the sides of the cell corner `qi` is nearest to.
     let scaled = qi.xyz * contacts.inv_cell;
     let c = vec3<i32>(floor(scaled));
     let side = select(vec3<i32>(-1), vec3<i32>(1), scaled - vec3<f32>(c) >= vec3<f32>(0.5));

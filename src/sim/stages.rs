@@ -5,7 +5,7 @@
 use super::integrate::Verlet;
 use super::team::{Member, Shared};
 use super::{constraint, solver, Model};
-use crate::collide::particles::{Grid, ParticleCollisions};
+use crate::collide::particles::{Finding, Grid, List, ListState, Near, ParticleCollisions};
 use crate::collide::{Collider, ShellCollider};
 use glam::Vec4;
 use std::sync::RwLock;
@@ -60,8 +60,15 @@ pub(super) struct Stages<'a> {
     pub(super) velocities: Shared<Vec4>,
     /// Particle–particle pushes of this substep, when those collisions are on.
     pub(super) pushes: Option<Shared<Vec4>>,
-    /// Their hash grid, rebuilt every substep.
+    /// Their hash grid, as the neighbour lists were made in it.
     pub(super) grid: &'a RwLock<Grid>,
+    /// Each particle's neighbour list, and where it was when the lists were made.
+    pub(super) lists: Shared<List>,
+    pub(super) anchors: Shared<Vec4>,
+    /// Set when some particle has moved too far from its anchor for the lists to hold.
+    pub(super) lists_stale: &'a std::sync::atomic::AtomicBool,
+    /// How the substeps have been finding the pairs (written by the leader after the stage).
+    pub(super) list_state: &'a std::sync::Mutex<ListState>,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     pub(super) nearby: Shared<crate::collide::shell::Nearby>,
     /// How many entries each nearby list holds.
@@ -94,25 +101,63 @@ pub(super) struct Stages<'a> {
 }
 
 impl Stages<'_> {
-    /// Particle–particle collisions: one thread sorts the predicted positions q = x + Δ into
-    /// the grid, then every thread computes its particles' pushes (added by `finish`).
+    /// Particle–particle collisions at q = x + Δ, the pairs found as [`ListState`] says: from
+    /// the neighbour lists while no particle has moved too far from where they were made
+    /// ([`ParticleCollisions::lists_stale`]); else one thread sorts q into the grid and every
+    /// thread makes its particles' lists again, or finds their pairs in the grid directly.
+    /// Every thread then computes its particles' pushes (added by `finish`).
     pub(super) fn particle_collisions(&self, m: &Member, pc: &ParticleCollisions) {
+        use std::sync::atomic::Ordering::Relaxed;
         let (model, b, grid) = (self.model, &self.b, self.grid);
         // SAFETY: between two syncs nobody writes x or Δ.
         let (x, d) = unsafe { (b.x.read_all(), b.delta.read_all()) };
         let q = |i: usize| x[i] + d[i];
-        if m.leads() {
-            pc.build(q, &mut grid.write().expect("not poisoned"));
+        let (lists, anchors) = (&self.lists, &self.anchors);
+        let state = *self.list_state.lock().expect("not poisoned");
+        // SAFETY (here and below): each particle's list and anchor are read and written by its
+        // own thread only.
+        if state.valid {
+            let stale = m.particles(&model.colour_ranges).any(|i| {
+                pc.lists_stale(unsafe { q(i).truncate().distance(anchors.get(i).truncate()) })
+            });
+            if stale {
+                self.lists_stale.store(true, Relaxed);
+            }
+            m.sync();
         }
-        m.sync();
+        let stale = self.lists_stale.load(Relaxed);
+        let finding = state.finding(stale);
+        if finding != Finding::Reuse {
+            if m.leads() {
+                let remake = finding == Finding::Remake;
+                pc.build(q, &mut grid.write().expect("not poisoned"), remake);
+            }
+            m.sync();
+        }
         let g = grid.read().expect("not poisoned");
         let pushes = self.pushes.expect("particle collisions have pushes");
         for i in m.particles(&model.colour_ranges) {
-            // SAFETY: each particle's push is written by its own thread.
-            unsafe { pushes.set(i, pc.push_out(i, |k| x[k], q, &model.inv_mass, &g)) };
+            unsafe {
+                if finding == Finding::Remake {
+                    anchors.set(i, q(i));
+                    lists.set(i, pc.list(i, q(i), &g));
+                }
+                let list = lists.get(i);
+                let near = match finding {
+                    Finding::Direct => Near::Grid,
+                    _ => Near::List(&list, anchors.get(i)),
+                };
+                pushes.set(i, pc.push_out(i, near, (|k| x[k], q), &model.inv_mass, &g));
+            }
         }
         drop(g);
         m.sync();
+        // Every thread has read the state and the flag; none reads them again before the next
+        // substep's stage, after `finish`'s sync.
+        if m.leads() {
+            *self.list_state.lock().expect("not poisoned") = state.after(finding, stale);
+            self.lists_stale.store(false, Relaxed);
+        }
     }
 
     /// This thread's particles the simulation moves (pinned and attached ones are never

@@ -9,11 +9,11 @@ use super::stages::{FocusCheck, Stages};
 use super::state::State;
 use super::team::Shared;
 use super::{solver, Model};
-use crate::collide::particles::{Grid, ParticleCollisions};
+use crate::collide::particles::{Grid, List, ListState, ParticleCollisions};
 use crate::collide::shell::{listed, Nearby, NEARBY};
 use crate::collide::Collider;
 use glam::Vec4;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::RwLock;
 
 /// Buffers and pass caches of the CPU substeps.
@@ -28,8 +28,16 @@ pub(super) struct Workspace {
     delta: Vec<Vec4>,
     /// Each particle's push out of the others in the current substep (particle collisions).
     pushes: Vec<Vec4>,
-    /// Their hash grid, rebuilt every substep.
+    /// Their hash grid, as the neighbour lists were last made in it.
     grid: RwLock<Grid>,
+    /// Each particle's neighbour list ([`crate::collide::particles`]), and its position when
+    /// the lists were made.
+    lists: Vec<List>,
+    anchors: Vec<Vec4>,
+    /// Set by the substep whose particles moved too far for the lists.
+    lists_stale: AtomicBool,
+    /// How the substeps have been finding the pairs.
+    list_state: std::sync::Mutex<ListState>,
     /// With several collision passes, each garment particle's nearby shell particles, per
     /// shell (shell-major), found at the end of the previous substep.
     nearby: Vec<Nearby>,
@@ -89,6 +97,10 @@ impl Workspace {
             delta: vec![Vec4::ZERO; n],
             pushes: vec![Vec4::ZERO; if particles.is_some() { n } else { 0 }],
             grid: RwLock::new(particles.map(|p| p.grid()).unwrap_or_default()),
+            lists: vec![List::EMPTY; if particles.is_some() { n } else { 0 }],
+            anchors: vec![Vec4::INFINITY; if particles.is_some() { n } else { 0 }],
+            lists_stale: AtomicBool::new(false),
+            list_state: Default::default(),
             nearby: Vec::new(),
             listed: Vec::new(),
             listed_gap: Vec::new(),
@@ -163,6 +175,10 @@ impl Workspace {
                 .particle_collisions
                 .then(|| Shared::new(&mut self.pushes)),
             grid: &self.grid,
+            lists: Shared::new(&mut self.lists),
+            anchors: Shared::new(&mut self.anchors),
+            lists_stale: &self.lists_stale,
+            list_state: &self.list_state,
             nearby: Shared::new(&mut self.nearby),
             listed: Shared::new(&mut self.listed),
             listed_gap: Shared::new(&mut self.listed_gap),

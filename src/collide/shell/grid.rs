@@ -4,6 +4,7 @@
 //! buckets).
 
 use super::*;
+use crate::collide::floor_cell;
 use glam::{IVec3, Vec3, Vec3A};
 
 /// The candidate shell particles of one query, visited in a fixed order (generic, so each
@@ -275,36 +276,6 @@ pub(super) fn bucket(c: IVec3, buckets: usize) -> usize {
 #[inline]
 pub(super) fn cell_index(p: Vec3, cell: f32) -> IVec3 {
     floor_cell(Vec3A::from(p) / cell)
-}
-
-/// The lattice cell of a point already divided by the cell's width (`p / cell`, in either
-/// vector type: each lane's quotient is the same number).
-#[inline]
-pub(super) fn floor_cell(q: impl Into<Vec3A>) -> IVec3 {
-    let q: Vec3A = q.into();
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE2 is part of every x86-64 target.
-    unsafe {
-        use std::arch::x86_64::*;
-        // The three lanes at once while each is a number below 2³¹ in size, where truncation
-        // is exact and the scalar conversion's saturation never applies (the rest below):
-        // truncate, then one less where that rounded up (negative fractions). Three scalar
-        // conversions with their checks were a fifth of placing a shell.
-        let v: __m128 = q.into();
-        let size = _mm_andnot_ps(_mm_set1_ps(-0.0), v);
-        if _mm_movemask_ps(_mm_cmple_ps(size, _mm_set1_ps(2_147_483_520.0))) & 7 == 7 {
-            let truncated = _mm_cvttps_epi32(v);
-            let above = _mm_cmplt_ps(v, _mm_cvtepi32_ps(truncated));
-            let cell: [i32; 4] =
-                std::mem::transmute(_mm_add_epi32(truncated, _mm_castps_si128(above)));
-            return IVec3::new(cell[0], cell[1], cell[2]);
-        }
-    }
-    let floor = |x: f32| {
-        let i = x as i32;
-        i.saturating_sub((x < i as f32) as i32)
-    };
-    IVec3::new(floor(q.x), floor(q.y), floor(q.z))
 }
 
 /// [`bucket`] of the cell holding `p`, as the grid stores it.

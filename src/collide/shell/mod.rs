@@ -39,6 +39,7 @@ mod contact;
 mod grid;
 mod near;
 mod placement;
+use super::floor_cell;
 use contact::*;
 use grid::*;
 use placement::*;

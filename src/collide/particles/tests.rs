@@ -1,0 +1,208 @@
+//! Unit tests of particle collisions: pushes against a brute force over every pair, however
+//! the pairs were found.
+
+use super::*;
+
+/// Two free particles of different garments at positions `q`, having started the substep at
+/// `x`: each one's push.
+fn pushes(x: [Vec4; 2], q: [Vec4; 2]) -> [Vec4; 2] {
+    let pc = ParticleCollisions {
+        radius: 0.01,
+        garment: vec![0, 1],
+        cell: vec![[0; 3]; 2],
+        table: 16,
+    };
+    let mut grid = pc.grid();
+    pc.build(|i| q[i], &mut grid, true);
+    let inv_mass = [1.0, 1.0];
+    [0, 1].map(|i| {
+        let list = pc.list(i, q[i], &grid);
+        let near = Near::List(&list, q[i]);
+        pc.push_out(i, near, (|k| x[k], |k| q[k]), &inv_mass, &grid)
+    })
+}
+
+/// `n` free particles of `n` garments (so none are lattice neighbours) in a cube of side
+/// `side` [m] around `centre`, by a fixed pseudo-random sequence.
+fn cloud(n: usize, side: f32, centre: Vec4, radius: f32) -> (ParticleCollisions, Vec<Vec4>) {
+    let mut seed = 0x2545_f491_u32;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed as f32 / u32::MAX as f32 - 0.5
+    };
+    let points = (0..n)
+        .map(|_| centre + Vec4::new(next(), next(), next(), 0.0) * side)
+        .collect();
+    let pc = ParticleCollisions {
+        radius,
+        garment: (0..n as u32).collect(),
+        cell: vec![[0; 3]; n],
+        table: (2 * n).next_power_of_two().max(16),
+    };
+    (pc, points)
+}
+
+/// Each particle's push by brute force over every pair, in ascending order.
+fn brute_pushes(pc: &ParticleCollisions, x: &[Vec4], q: &[Vec4]) -> Vec<Vec4> {
+    let diameter = pc.diameter();
+    (0..q.len())
+        .map(|i| {
+            let (mut push, mut touching) = (Vec4::ZERO, 0u32);
+            for j in 0..q.len() {
+                let d = q[i] - q[j];
+                let distance = d.length();
+                if j == i || distance >= diameter || distance < 1e-9 {
+                    continue;
+                }
+                let along = apart(x[i] - x[j], d, distance);
+                push += along * ((diameter - d.dot(along)) * 0.5);
+                touching += 1;
+            }
+            push / touching.max(1) as f32
+        })
+        .collect()
+}
+
+#[test]
+fn every_pair_within_a_diameter_is_pushed_wherever_it_lies_in_its_cell() {
+    // A cloud dense enough that each particle overlaps several, placed over many offsets
+    // from the grid (particles near every side of their cells): the pushes from the lists
+    // and from the direct grid both equal the brute force's to the bit. The grid before
+    // walked cells one diameter wide and missed a third of the overlapping pairs in P.
+    let radius = 0.01;
+    for shift in 0..7 {
+        let centre = Vec4::new(0.31, -0.7, 1.3, 0.0) + Vec4::splat(shift as f32 * 0.0137);
+        let (pc, q) = cloud(300, 0.15, centre, radius);
+        let x: Vec<Vec4> = q
+            .iter()
+            .map(|p| *p + Vec4::new(0.0, 0.001, 0.0, 0.0))
+            .collect();
+        let (mut for_lists, mut direct) = (pc.grid(), pc.grid());
+        pc.build(|i| q[i], &mut for_lists, true);
+        pc.build(|i| q[i], &mut direct, false);
+        let inv_mass = vec![1.0; q.len()];
+        let expected = brute_pushes(&pc, &x, &q);
+        let touching = expected.iter().filter(|p| **p != Vec4::ZERO).count();
+        assert!(touching > 200, "{touching} particles touch another");
+        let (x, q) = (|k: usize| x[k], |k: usize| q[k]);
+        for (i, want) in expected.iter().enumerate() {
+            let list = pc.list(i, q(i), &for_lists);
+            let near = Near::List(&list, q(i));
+            let got = pc.push_out(i, near, (x, q), &inv_mass, &for_lists);
+            assert_eq!(got, *want, "particle {i}, shift {shift}, from its list");
+            let got = pc.push_out(i, Near::Grid, (x, q), &inv_mass, &direct);
+            assert_eq!(got, *want, "particle {i}, shift {shift}, in the grid");
+        }
+    }
+}
+
+#[test]
+fn lists_made_before_the_particles_moved_push_as_fresh_ones_until_stale() {
+    // Lists made at `before`, then every particle moved by just under the rebuild
+    // threshold in its own direction: the pushes equal fresh lists' (and the brute force's)
+    // to the bit, and one move past the threshold makes them stale.
+    let radius = 0.01;
+    let (pc, before) = cloud(250, 0.14, Vec4::new(-0.2, 0.4, 0.05, 0.0), radius);
+    let step = 0.999 * REBUILD_AT * LIST_MARGIN * pc.diameter();
+    let (_, directions) = cloud(250, 2.0, Vec4::ZERO, radius);
+    let q: Vec<Vec4> = (before.iter().zip(&directions))
+        .map(|(p, d)| *p + d.normalize() * step)
+        .collect();
+    let moved = (q.iter().zip(&before))
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(!pc.lists_stale(moved), "moved {moved}");
+    assert!(pc.lists_stale(moved * 1.02 / 0.999));
+    assert!(pc.lists_stale(f32::NAN));
+    let (mut old, mut fresh) = (pc.grid(), pc.grid());
+    pc.build(|i| before[i], &mut old, true);
+    pc.build(|i| q[i], &mut fresh, true);
+    let inv_mass = vec![1.0; q.len()];
+    let expected = brute_pushes(&pc, &before, &q);
+    assert!(expected.iter().filter(|p| **p != Vec4::ZERO).count() > 100);
+    for i in 0..q.len() {
+        let (x, at) = (|k: usize| before[k], |k: usize| q[k]);
+        let kept = pc.list(i, before[i], &old);
+        let new = pc.list(i, q[i], &fresh);
+        let a = pc.push_out(i, Near::List(&kept, before[i]), (x, at), &inv_mass, &old);
+        let b = pc.push_out(i, Near::List(&new, q[i]), (x, at), &inv_mass, &fresh);
+        assert_eq!(a, expected[i], "particle {i}");
+        assert_eq!(b, expected[i], "particle {i}");
+    }
+}
+
+#[test]
+fn a_list_too_long_to_keep_walks_the_grid_to_the_same_push() {
+    // 60 and 100 particles within 3 cm of each other at a 1 cm radius: every list
+    // overflows, and the walk in the grid gives the brute force's pushes (with 100, more
+    // than `NEAR` lie near each: the merge of the buckets).
+    for n in [60, 100] {
+        overflowing(n);
+    }
+}
+
+fn overflowing(n: usize) {
+    let (pc, q) = cloud(n, 0.03, Vec4::new(0.5, 0.5, 0.5, 0.0), 0.01);
+    let mut grid = pc.grid();
+    pc.build(|i| q[i], &mut grid, true);
+    let x: Vec<Vec4> = q.iter().map(|p| *p * 1.01).collect();
+    let inv_mass = vec![1.0; q.len()];
+    let expected = brute_pushes(&pc, &x, &q);
+    for (i, want) in expected.iter().enumerate() {
+        let list = pc.list(i, q[i], &grid);
+        assert!(list.entries().is_none(), "particle {i}'s list kept");
+        let near = Near::List(&list, q[i]);
+        let got = pc.push_out(i, near, (|k| x[k], |k| q[k]), &inv_mass, &grid);
+        assert_eq!(got, *want, "particle {i}");
+    }
+}
+
+#[test]
+fn lists_that_go_stale_at_once_give_way_to_direct_search_for_a_run() {
+    let made = ListState::default().after(Finding::Remake, false);
+    assert_eq!(ListState::default().finding(false), Finding::Remake);
+    assert_eq!(made.finding(false), Finding::Reuse);
+    // Stale at the first substep after they were made: direct for DIRECT_RUN substeps,
+    // then lists again.
+    assert_eq!(made.finding(true), Finding::Direct);
+    let mut state = made.after(Finding::Direct, true);
+    for _ in 1..DIRECT_RUN {
+        assert_eq!(state.finding(false), Finding::Direct);
+        state = state.after(Finding::Direct, false);
+    }
+    assert_eq!(state.finding(false), Finding::Remake);
+    // Lists that served a substep are made again when stale.
+    let served = made.after(Finding::Reuse, false);
+    assert_eq!(served.finding(true), Finding::Remake);
+}
+
+#[test]
+fn a_particle_carried_through_another_goes_back_to_its_own_side() {
+    // Particle 0 started 3 cm above particle 1 and the solve carried it to 5 mm below: the
+    // pair ends a diameter (2 cm) apart with 0 above, as it started.
+    let x = [Vec4::new(0.0, 0.03, 0.0, 0.0), Vec4::ZERO];
+    let q = [Vec4::new(0.0, -0.005, 0.0, 0.0), Vec4::ZERO];
+    let p = pushes(x, q);
+    let apart = (q[0] + p[0]) - (q[1] + p[1]);
+    assert!(
+        (apart - Vec4::new(0.0, 0.02, 0.0, 0.0)).length() < 1e-6,
+        "{apart}"
+    );
+}
+
+#[test]
+fn an_overlap_without_a_crossing_is_pushed_apart_along_the_start_separation() {
+    // Closing along x at a slant: they end a diameter apart along where they came from,
+    // each moving half of the overlap.
+    let x = [Vec4::new(0.05, 0.0, 0.0, 0.0), Vec4::ZERO];
+    let q = [Vec4::new(0.012, 0.004, 0.0, 0.0), Vec4::ZERO];
+    let p = pushes(x, q);
+    assert!(
+        (p[0] - Vec4::new(0.004, 0.0, 0.0, 0.0)).length() < 1e-6,
+        "{}",
+        p[0]
+    );
+    assert!((p[1] + p[0]).length() < 1e-6, "{}", p[1]);
+}
