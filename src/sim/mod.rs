@@ -231,6 +231,18 @@ impl Simulation {
         self.workspace.pass_slack_enabled = on;
     }
 
+    /// Whether particle collisions keep neighbour lists between substeps (on by default; off,
+    /// every substep finds its pairs in a grid directly, to the same result).
+    pub fn set_particle_lists(&mut self, on: bool) {
+        self.workspace.particle_lists_enabled = on;
+    }
+
+    /// Substeps whose particle collisions found their pairs in neighbour lists an earlier
+    /// substep made, so far.
+    pub fn particle_lists_reused(&self) -> u64 {
+        self.workspace.lists_reused()
+    }
+
     /// Advances one frame (all substeps).
     pub fn step_frame(&mut self) {
         self.step_frame_shared(None);

@@ -69,6 +69,10 @@ pub(super) struct Stages<'a> {
     pub(super) lists_stale: &'a std::sync::atomic::AtomicBool,
     /// How the substeps have been finding the pairs (written by the leader after the stage).
     pub(super) list_state: &'a std::sync::Mutex<ListState>,
+    /// Whether they may keep lists (else every substep finds its pairs directly), and how many
+    /// substeps reused lists.
+    pub(super) particle_lists: bool,
+    pub(super) lists_reused: &'a std::sync::atomic::AtomicU64,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     pub(super) nearby: Shared<crate::collide::shell::Nearby>,
     /// How many entries each nearby list holds.
@@ -126,7 +130,10 @@ impl Stages<'_> {
             m.sync();
         }
         let stale = self.lists_stale.load(Relaxed);
-        let finding = state.finding(stale);
+        let finding = match self.particle_lists {
+            true => state.finding(stale),
+            false => Finding::Direct,
+        };
         if finding != Finding::Reuse {
             if m.leads() {
                 let remake = finding == Finding::Remake;
@@ -154,9 +161,12 @@ impl Stages<'_> {
         m.sync();
         // Every thread has read the state and the flag; none reads them again before the next
         // substep's stage, after `finish`'s sync.
-        if m.leads() {
+        if m.leads() && self.particle_lists {
             *self.list_state.lock().expect("not poisoned") = state.after(finding, stale);
             self.lists_stale.store(false, Relaxed);
+            if finding == Finding::Reuse {
+                self.lists_reused.fetch_add(1, Relaxed);
+            }
         }
     }
 

@@ -38,6 +38,11 @@ pub(super) struct Workspace {
     lists_stale: AtomicBool,
     /// How the substeps have been finding the pairs.
     list_state: std::sync::Mutex<ListState>,
+    /// Whether particle collisions keep neighbour lists (on by default; off, every substep
+    /// finds its pairs in a grid directly, to the same result).
+    pub(super) particle_lists_enabled: bool,
+    /// Substeps that found their pairs in lists made by an earlier one so far.
+    lists_reused: AtomicU64,
     /// With several collision passes, each garment particle's nearby shell particles, per
     /// shell (shell-major), found at the end of the previous substep.
     nearby: Vec<Nearby>,
@@ -101,6 +106,8 @@ impl Workspace {
             anchors: vec![Vec4::INFINITY; if particles.is_some() { n } else { 0 }],
             lists_stale: AtomicBool::new(false),
             list_state: Default::default(),
+            particle_lists_enabled: true,
+            lists_reused: AtomicU64::new(0),
             nearby: Vec::new(),
             listed: Vec::new(),
             listed_gap: Vec::new(),
@@ -116,6 +123,11 @@ impl Workspace {
     /// The spring buffers sized for `model` again (after tearing removed springs).
     pub(super) fn fit_springs(&mut self, model: &Model) {
         self.projection = vec![Vec4::ZERO; model.springs.len()];
+    }
+
+    /// Substeps whose particle collisions found their pairs in lists an earlier one made.
+    pub(super) fn lists_reused(&self) -> u64 {
+        self.lists_reused.load(Ordering::Relaxed)
     }
 
     /// Particles the later collision passes left out by their slack so far.
@@ -179,6 +191,8 @@ impl Workspace {
             anchors: Shared::new(&mut self.anchors),
             lists_stale: &self.lists_stale,
             list_state: &self.list_state,
+            particle_lists: self.particle_lists_enabled,
+            lists_reused: &self.lists_reused,
             nearby: Shared::new(&mut self.nearby),
             listed: Shared::new(&mut self.listed),
             listed_gap: Shared::new(&mut self.listed_gap),
