@@ -419,19 +419,19 @@ fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
     );
     whole.drivers.focus.enabled = false;
     let mut fewest = usize::MAX;
-    for frame in 0..scene.frames {
-        focused.step_frame();
-        whole.step_frame();
-        assert_eq!(
-            focused.state, whole.state,
-            "frame {frame}: the focus changed the cloth"
-        );
-        assert_eq!(whole.drivers.shells[0].focused(), None);
-        if let Some((active, all)) = focused.drivers.shells[0].focused() {
-            assert!(10 * active <= 9 * all, "{active} of {all} in focus");
-            fewest = fewest.min(active);
-        }
-    }
+    let frames = scene.frames;
+    common::step_alike(
+        (&mut focused, &mut whole),
+        frames,
+        "the focus",
+        |focused, whole| {
+            assert_eq!(whole.drivers.shells[0].focused(), None);
+            if let Some((active, all)) = focused.drivers.shells[0].focused() {
+                assert!(10 * active <= 9 * all, "{active} of {all} in focus");
+                fewest = fewest.min(active);
+            }
+        },
+    );
     let all = whole.drivers.shells[0].particles();
     eprintln!("focus: {fewest} of {all} shell particles at the least");
     assert!(

@@ -173,14 +173,12 @@ fn pairs_found_through_lists_or_directly_move_the_cloth_alike() {
         common::simulation(&scene, dir.path()),
     );
     direct.set_particle_lists(false);
-    for frame in 0..scene.frames {
-        lists.step_frame();
-        direct.step_frame();
-        assert_eq!(
-            lists.state, direct.state,
-            "frame {frame}: the lists changed the cloth"
-        );
-    }
+    common::step_alike(
+        (&mut lists, &mut direct),
+        scene.frames,
+        "the lists",
+        |_, _| {},
+    );
     assert_eq!(direct.particle_lists_reused(), 0);
     let substeps = 20 * scene.frames as u64;
     let reused = lists.particle_lists_reused();

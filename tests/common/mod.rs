@@ -83,6 +83,23 @@ pub fn gpu_context() -> Option<drape::gpu::GpuContext> {
     }
 }
 
+/// Steps `a` and `b` (two simulations of one scene that differ only in how they compute it)
+/// through `frames` frames, asserting after each that their states are equal bit for bit
+/// (`what`: the difference, for the message), then calls `after(a, b)`.
+pub fn step_alike(
+    (a, b): (&mut drape::sim::Simulation, &mut drape::sim::Simulation),
+    frames: u32,
+    what: &str,
+    mut after: impl FnMut(&drape::sim::Simulation, &drape::sim::Simulation),
+) {
+    for frame in 0..frames {
+        a.step_frame();
+        b.step_frame();
+        assert_eq!(a.state, b.state, "frame {frame}: {what} changed the cloth");
+        after(a, b);
+    }
+}
+
 /// Largest distance between the particles of two simulations of one scene [m].
 pub fn largest_gap(a: &drape::sim::Simulation, b: &drape::sim::Simulation) -> f32 {
     a.state
