@@ -75,11 +75,20 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     for line in dressing(&scene, &garments)? {
         println!("  {line}");
     }
+    let collisions = match scene.particle_collisions {
+        true => drape::collide::particles::ParticleCollisions::memory_bytes(model.particle_count()),
+        false => 0,
+    };
+    let mib = |bytes: usize| bytes as f64 / (1024.0 * 1024.0);
     println!(
-        "  total: {} particles, {} springs, about {:.2} MiB of solver memory",
+        "  total: {} particles, {} springs, about {:.2} MiB of solver memory{}",
         model.particle_count(),
         model.springs.len(),
-        model.memory_bytes() as f64 / (1024.0 * 1024.0)
+        mib(model.memory_bytes() + collisions),
+        match collisions {
+            0 => String::new(),
+            bytes => format!(" ({:.2} MiB of it particle collisions)", mib(bytes)),
+        }
     );
     println!(
         "  outputs: about {:.1} MB written over {} frames (garments; characters add theirs)",

@@ -19,7 +19,7 @@ pub struct Grid {
     /// read side by side, not scattered over the model).
     pub points: Vec<Vec4>,
     /// Where the sort writes the next particle of each bucket (kept to spare an allocation).
-    cursor: Vec<u32>,
+    pub(super) cursor: Vec<u32>,
     /// 1 / cell width it was built with: twice a list's reach for the lists, twice a diameter
     /// to find the pairs directly.
     inv_cell: f32,

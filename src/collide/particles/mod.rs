@@ -91,6 +91,15 @@ impl ParticleCollisions {
         }
     }
 
+    /// Memory the CPU backend's particle collisions take for `particles` particles [bytes]:
+    /// their static data (garment and lattice cell), the grid (items, buckets, positions and
+    /// the table's starts and cursors), the neighbour lists with their anchors, and the pushes.
+    pub fn memory_bytes(particles: usize) -> usize {
+        let table = (2 * particles).next_power_of_two().max(16);
+        let per_particle = 4 + 12 + (4 + 4 + 16) + (std::mem::size_of::<List>() + 16) + 16;
+        particles * per_particle + (2 * table + 1) * 4
+    }
+
     /// Default radius for `garments`: half the smallest rest spacing, so neighbours at rest touch.
     pub fn default_radius(garments: &[Garment]) -> f32 {
         garments

@@ -206,3 +206,23 @@ fn an_overlap_without_a_crossing_is_pushed_apart_along_the_start_separation() {
     );
     assert!((p[1] + p[0]).length() < 1e-6, "{}", p[1]);
 }
+
+#[test]
+fn memory_bytes_counts_the_buffers_a_simulation_allocates() {
+    // The static data and a grid as built, and per particle a list, an anchor and a push (as
+    // `sim::Workspace` allocates them).
+    for n in [1, 300, 4148] {
+        let (pc, _) = cloud(n, 1.0, Vec4::ZERO, 0.01);
+        let grid = pc.grid();
+        let allocated = pc.garment.len() * 4
+            + pc.cell.len() * 12
+            + (grid.start.len() + grid.items.len() + grid.bucket.len() + grid.cursor.len()) * 4
+            + grid.points.len() * 16
+            + n * (std::mem::size_of::<List>() + 16 + 16);
+        assert_eq!(
+            ParticleCollisions::memory_bytes(n),
+            allocated,
+            "{n} particles"
+        );
+    }
+}
