@@ -105,10 +105,7 @@ fn passes_survive_a_shell_that_shrinks_between_frames() {
 fn passes_left_out_by_the_slack_change_no_bit() {
     let dir = common::temp_dir();
     let scene = common::scene_p(dir.path(), 40);
-    let (mut slack, mut full) = (
-        common::simulation(&scene, dir.path()),
-        common::simulation(&scene, dir.path()),
-    );
+    let (mut slack, mut full) = common::two_simulations(&scene, dir.path());
     full.set_pass_slack(false);
     common::step_alike(
         (&mut slack, &mut full),

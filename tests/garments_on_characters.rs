@@ -413,10 +413,7 @@ fn a_focused_shell_moves_only_what_the_cloth_can_reach_and_changes_no_result() {
         30,
     );
     let scene = common::scene(&text);
-    let (mut focused, mut whole) = (
-        common::simulation(&scene, dir.path()),
-        common::simulation(&scene, dir.path()),
-    );
+    let (mut focused, mut whole) = common::two_simulations(&scene, dir.path());
     whole.drivers.focus.enabled = false;
     let mut fewest = usize::MAX;
     let frames = scene.frames;

@@ -168,10 +168,7 @@ fn pairs_found_through_lists_or_directly_move_the_cloth_alike() {
     let dir = common::temp_dir();
     let scene = common::scene_p(dir.path(), 40);
     assert!(scene.particle_collisions, "P ships with self-collisions");
-    let (mut lists, mut direct) = (
-        common::simulation(&scene, dir.path()),
-        common::simulation(&scene, dir.path()),
-    );
+    let (mut lists, mut direct) = common::two_simulations(&scene, dir.path());
     direct.set_particle_lists(false);
     common::step_alike(
         (&mut lists, &mut direct),

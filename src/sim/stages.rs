@@ -146,8 +146,14 @@ impl Stages<'_> {
         for i in m.particles(&model.colour_ranges) {
             unsafe {
                 if finding == Finding::Remake {
+                    // A pinned particle is never pushed: its anchor alone is kept (others'
+                    // lists go stale by its motion too).
                     anchors.set(i, q(i));
-                    lists.set(i, pc.list(i, q(i), &g));
+                    let list = match model.inv_mass[i] {
+                        0.0 => List::EMPTY,
+                        _ => pc.list(i, q(i), &g),
+                    };
+                    lists.set(i, list);
                 }
                 let list = lists.get(i);
                 let near = match finding {

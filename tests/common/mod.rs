@@ -83,6 +83,15 @@ pub fn gpu_context() -> Option<drape::gpu::GpuContext> {
     }
 }
 
+/// Two simulations of `scene` as the bake builds it (see [`simulation`]), to be told apart by how
+/// they compute it and stepped with [`step_alike`].
+pub fn two_simulations(
+    scene: &Scene,
+    dir: &Path,
+) -> (drape::sim::Simulation, drape::sim::Simulation) {
+    (simulation(scene, dir), simulation(scene, dir))
+}
+
 /// Steps `a` and `b` (two simulations of one scene that differ only in how they compute it)
 /// through `frames` frames, asserting after each that their states are equal bit for bit
 /// (`what`: the difference, for the message), then calls `after(a, b)`.
