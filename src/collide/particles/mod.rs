@@ -188,24 +188,19 @@ impl ParticleCollisions {
             push += along * ((diameter - d.dot(along)) * wi / (wi + wj));
             touching += 1;
         };
-        // Where to walk the grid, and whether it holds the positions q (built this substep)
-        // or the lists' anchors.
         let around = match near {
             Near::List(list, anchor) => match list.entries() {
                 Some(entries) => {
                     entries.iter().for_each(|&j| meet(j as usize));
                     None
                 }
-                None => Some((anchor, false)),
+                None => Some(anchor),
             },
-            Near::Grid => Some((qi, true)),
+            Near::Grid => Some(qi),
         };
-        if let Some((p, holds_q)) = around {
-            // The grid's own copy of q where it holds it: read side by side.
-            let within = |k: usize| match holds_q {
-                true => (qi - grid.points[k]).length_squared(),
-                false => (qi - q(grid.items[k] as usize)).length_squared(),
-            };
+        if let Some(p) = around {
+            // (Reading the direct grid's own copy of q instead was slower on box_stack.)
+            let within = |k: usize| (qi - q(grid.items[k] as usize)).length_squared();
             match self.gather(p, grid, reach_squared * 1.0001, within) {
                 // The few within a diameter, in ascending order.
                 Some((mut near, count)) => {
