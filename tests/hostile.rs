@@ -423,6 +423,18 @@ fn odd_but_valid_scenes_bake() {
             keeps: &[("out/report.json", None)],
             leaves_no: &[],
         },
+        Case {
+            name: "a sheet that collides with itself without shear springs",
+            files: &[(
+                "scene.json",
+                r#"{ "frames": 2, "backend": "cpu", "particle_collisions": true, "garments": [{ "name": "sheet", "resolution": [6, 5] }] }"#,
+            )],
+            args: &["bake", "scene.json", "--out", "out"],
+            code: 0,
+            says: &["garment sheet", "without shear springs", "stiffness.shear"],
+            keeps: &[("out/report.json", None)],
+            leaves_no: &[],
+        },
     ];
     for case in &cases {
         check(case);
