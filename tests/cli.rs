@@ -333,3 +333,24 @@ fn inspect_advises_on_the_garments_level_of_detail() {
         }
     }
 }
+
+#[test]
+fn inspect_warns_of_a_self_colliding_sheet_without_shear_springs() {
+    let dir = temp_dir();
+    for (shear, warned) in [(0, true), (300, false)] {
+        write(
+            dir.path(),
+            "scene.json",
+            &format!(
+                r#"{{ "particle_collisions": true,
+                     "garments": [{{ "name": "cloth", "resolution": [8, 8],
+                                    "stiffness": {{ "stretch": 10000, "shear": {shear} }} }}] }}"#
+            ),
+        );
+        let out = drape(dir.path(), &["inspect", "scene.json"]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let says = text.contains("warning: garment cloth: self-collisions without shear springs");
+        assert_eq!(says, warned, "shear {shear}: {text}");
+    }
+}

@@ -79,7 +79,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
 /// shearing flat and its triangles from folding through their neighbours': on scene P that was
 /// 2 617 crossing triangle pairs over the bake, and none with `stiffness.shear` 300
 /// (`docs/benchmarks.md`, "Cells that shear flat fold through themselves").
-fn folding_warnings(scene: &Scene, garments: &[crate::garment::Garment]) -> Vec<String> {
+pub fn folding_warnings(scene: &Scene, garments: &[crate::garment::Garment]) -> Vec<String> {
     use crate::garment::stencil::SpringFamily;
     if !scene.particle_collisions {
         return Vec::new();

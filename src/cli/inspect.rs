@@ -50,6 +50,9 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     for line in level_of_detail(&scene, &garments) {
         println!("  {line}");
     }
+    for line in drape::bake::prepare::folding_warnings(&scene, &garments) {
+        println!("  warning: {line}");
+    }
     for (c, r) in model.colour_ranges.iter().enumerate() {
         println!("  colour {c}: {} particles", r.len());
     }
