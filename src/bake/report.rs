@@ -109,6 +109,7 @@ pub(super) fn frame_metrics(
         total_squared_error: e.total_squared_error,
         mean_strain: e.mean_strain,
         max_strain: e.max_strain,
+        max_stretch: e.max_stretch,
         mean_shear_deg: e.mean_shear_deg,
         max_shear_deg: e.max_shear_deg,
         penetrations: collider_penetrations(p),

@@ -109,9 +109,10 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
     }
     if let Some(last) = &r.last_frame {
         println!(
-            "last frame: mean strain {:.3} %, max strain {:.3} %, cell shear {:.2}° mean, {:.2}° max, total squared error {:.3e} m²",
+            "last frame: mean strain {:.3} %, max strain {:.3} % (stretch {:.3} %), cell shear {:.2}° mean, {:.2}° max, total squared error {:.3e} m²",
             last.mean_strain * 100.0,
             last.max_strain * 100.0,
+            last.max_stretch * 100.0,
             last.mean_shear_deg,
             last.max_shear_deg,
             last.total_squared_error

@@ -305,6 +305,10 @@ pub struct FrameMetrics {
     pub total_squared_error: f64,
     pub mean_strain: f64,
     pub max_strain: f64,
+    /// Largest (l − L) / L over structural springs: stretch alone (`max_strain` also counts
+    /// compression).
+    #[serde(default)]
+    pub max_stretch: f64,
     /// Mean and largest |90° − angle| of the garments' lattice cells [degrees] (shear, which
     /// structural strain does not see).
     #[serde(default)]

@@ -15,6 +15,9 @@ pub struct ConstraintError {
     pub mean_strain: f64,
     /// Largest |l − L| / L over structural springs.
     pub max_strain: f64,
+    /// Largest (l − L) / L over structural springs: stretch alone, where `max_strain` also
+    /// counts compression (cloth squeezed in a pinch, which a coarse lattice cannot buckle).
+    pub max_stretch: f64,
     /// Mean and largest |90° − angle| over the lattice's cell corners (two structural
     /// springs from one particle along different axes, square at rest) [degrees]: the shear
     /// that structural strain does not see.
@@ -44,6 +47,10 @@ pub fn constraint_error(model: &Model, positions: &[Vec4]) -> ConstraintError {
         e.mean_strain += strain;
         if strain > e.max_strain || strain.is_nan() {
             e.max_strain = strain;
+        }
+        let stretch = err / rest;
+        if stretch > e.max_stretch || stretch.is_nan() {
+            e.max_stretch = stretch;
         }
     }
     if count > 0 {
@@ -174,4 +181,37 @@ pub fn unstable_reason(
         ));
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::garment::Garment;
+
+    /// A 3 × 1 rope's positions with its two springs at `first` and `second` times their rest.
+    fn rope(first: f32, second: f32) -> ConstraintError {
+        let scene = crate::scene::Scene::parse(
+            r#"{ "garments": [{ "kind": "rope", "resolution": [3], "size": [0.2] }] }"#,
+            "<test>",
+        )
+        .unwrap();
+        let garments: Vec<Garment> = crate::garment::build_all(&scene, "<test>").unwrap();
+        let model = Model::new(&garments);
+        let x = [0.0, 0.1 * first, 0.1 * first + 0.1 * second];
+        let mut positions = vec![Vec4::ZERO; 3];
+        for (k, &s) in model.storage_of.iter().enumerate() {
+            positions[s as usize] = Vec4::new(x[k], 1.0, 0.0, 0.0);
+        }
+        constraint_error(&model, &positions)
+    }
+
+    #[test]
+    fn stretch_leaves_compression_out_and_strain_counts_both() {
+        let squeezed = rope(0.8, 1.05);
+        assert!((squeezed.max_strain - 0.2).abs() < 1e-6, "{squeezed:?}");
+        assert!((squeezed.max_stretch - 0.05).abs() < 1e-6, "{squeezed:?}");
+        let pulled = rope(1.1, 0.95);
+        assert!((pulled.max_strain - 0.1).abs() < 1e-6, "{pulled:?}");
+        assert!((pulled.max_stretch - 0.1).abs() < 1e-6, "{pulled:?}");
+    }
 }
