@@ -50,7 +50,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     for line in level_of_detail(&scene, &garments) {
         println!("  {line}");
     }
-    for line in drape::bake::prepare::folding_warnings(&scene, &garments) {
+    for line in drape::garment::advice::folding_warnings(&garments, scene.particle_collisions) {
         println!("  warning: {line}");
     }
     for (c, r) in model.colour_ranges.iter().enumerate() {

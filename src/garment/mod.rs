@@ -5,6 +5,7 @@
 //! That order is the one exports and reports use; the solver keeps its own colour-sorted order
 //! (see `sim::model`).
 
+pub mod advice;
 pub mod coloring;
 pub mod stencil;
 pub mod voxel;
