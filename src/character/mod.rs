@@ -53,6 +53,9 @@ pub struct CharacterOptions {
     pub hidden: Vec<String>,
     /// The character's own pre-roll: bind pose, then a blend into the clip's first frame.
     pub preroll: Option<Preroll>,
+    /// Rotations added to joints in the clip (joint name → Euler degrees about the file's
+    /// axes as the joint lies in the bind pose); see [`Asset::offset_joints`].
+    pub joint_offsets: std::collections::BTreeMap<String, [f32; 3]>,
     /// Frames the bake simulates before the clip's first frame (the scene's longest pre-roll):
     /// this character's pre-roll ends with them; without one it holds the clip's first frame.
     pub lead_in: usize,
@@ -111,6 +114,7 @@ impl CharacterSpec {
             joints: self.joints.clone(),
             hidden: Vec::new(),
             preroll: self.preroll,
+            joint_offsets: self.joint_offsets.clone(),
             lead_in: 0,
         }
     }
@@ -133,6 +137,9 @@ impl CharacterOptions {
         }
         finite3(self.position).map_err(|r| ("position", r))?;
         finite3(self.rotation).map_err(|r| ("rotation", r))?;
+        for (joint, angles) in &self.joint_offsets {
+            finite3(*angles).map_err(|r| ("joint_offsets", format!("{joint:?}: {r}")))?;
+        }
         if !self.time_offset.is_finite() {
             return Err((
                 "time_offset",
@@ -262,6 +269,15 @@ impl Character {
             let asset = Asset::open(&files[0])?;
             return Character::from_asset(&asset, source, options, fps, frames);
         }
+        if !options.joint_offsets.is_empty() {
+            return Err(Error::InvalidField {
+                file: source.display().to_string(),
+                field: "joint_offsets".into(),
+                reason: "a frame sequence has no joints to turn (joint offsets need a file with \
+                         a skeleton or a node hierarchy)"
+                    .into(),
+            });
+        }
         // A sequence: file k is frame k at `sequence_fps` (default: the scene's), resampled to
         // `fps` by linear interpolation; past the last file the last frame holds.
         let Sequence {
@@ -373,12 +389,15 @@ impl Character {
             })?),
             None => None,
         };
-        let hidden;
-        let asset = if options.hidden.is_empty() {
+        // Garment meshes of the file left out, joint offsets set.
+        let adjusted;
+        let asset = if options.hidden.is_empty() && options.joint_offsets.is_empty() {
             asset
         } else {
-            hidden = asset.clone().without(&options.hidden);
-            &hidden
+            let mut a = asset.clone().without(&options.hidden);
+            a.offset_joints(&options.joint_offsets, source)?;
+            adjusted = a;
+            &adjusted
         };
         let duration = clip.map_or(0.0, |c| asset.clips[c].duration);
         let transform = options.transform();

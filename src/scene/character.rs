@@ -3,6 +3,7 @@
 //! them; `character` imports and places what they describe.
 
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// An animated character: a file assimp reads, a folder of per-frame files, or a `%04d` pattern,
 /// placed in the scene and covered by a shell of collision particles.
@@ -46,6 +47,12 @@ pub struct CharacterSpec {
     /// Frames simulated before the scene's first frame: the character holds its bind pose for
     /// `settle` frames, then blends into the clip's first frame over `blend`. Default none.
     pub preroll: Option<Preroll>,
+    /// Rotations added to joints in every frame of the clip, never to the bind pose: joint
+    /// name → Euler degrees X then Y then Z about the file's axes as the joint lies in the bind
+    /// pose, turning the joint and everything below it about the joint. A sim-prep layer: arms
+    /// spread a few degrees clear of a body the clip passes them into. Default none.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub joint_offsets: BTreeMap<String, [f32; 3]>,
 }
 
 impl Default for CharacterSpec {
@@ -68,6 +75,7 @@ impl Default for CharacterSpec {
             meshes: None,
             joints: None,
             preroll: None,
+            joint_offsets: BTreeMap::new(),
         }
     }
 }

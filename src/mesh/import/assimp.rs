@@ -241,5 +241,6 @@ fn from_scene(scene: &AiScene, file: &str) -> Result<Asset> {
         meshes,
         clips,
         warnings,
+        offsets: Vec::new(),
     })
 }

@@ -42,6 +42,7 @@ pub fn open(path: &Path) -> Result<Asset> {
         meshes,
         clips,
         warnings: Vec::new(),
+        offsets: Vec::new(),
     })
 }
 

@@ -41,8 +41,18 @@ impl Asset {
         names
     }
 
-    /// Per vertex of [`Asset::pose`]: the share of it that the nodes marked in `within` move.
-    fn share_moved_by(&self, within: &[bool]) -> Vec<f32> {
+    /// Per node: whether it or an ancestor is called one of `names` (parents come first).
+    pub fn nodes_below(&self, names: &[String]) -> Vec<bool> {
+        let mut within = vec![false; self.nodes.len()];
+        for (i, node) in self.nodes.iter().enumerate() {
+            within[i] = names.contains(&node.name) || node.parent.is_some_and(|p| within[p]);
+        }
+        within
+    }
+
+    /// Per vertex of [`Asset::pose`]: the share of it that the nodes marked in `within` move
+    /// (its skin weights on them; a rigid mesh's vertices 1 or 0 by the node carrying them).
+    pub fn share_moved_by(&self, within: &[bool]) -> Vec<f32> {
         let mut share = Vec::new();
         for m in &self.meshes {
             if m.bones.is_empty() {
@@ -81,13 +91,7 @@ impl Asset {
         if let Some(name) = joints.names().iter().find(|n| !names.contains(&n.as_str())) {
             return Err(bad(format!("{name:?} is no joint of the file")));
         }
-        // A node is within the selection when it or an ancestor is named (parents come first).
-        let mut within = vec![false; self.nodes.len()];
-        for (i, node) in self.nodes.iter().enumerate() {
-            let named = joints.names().contains(&node.name);
-            within[i] = named || node.parent.is_some_and(|p| within[p]);
-        }
-        let share = self.share_moved_by(&within);
+        let share = self.share_moved_by(&self.nodes_below(joints.names()));
         let include = matches!(joints, MeshSelection::Include(_));
         let kept: Vec<[u32; 3]> = triangles
             .into_iter()
@@ -104,7 +108,7 @@ impl Asset {
 }
 
 /// The names, quoted, comma-separated ("none" for none).
-fn listing(names: &[&str]) -> String {
+pub(super) fn listing(names: &[&str]) -> String {
     if names.is_empty() {
         return "none".into();
     }

@@ -15,6 +15,7 @@
 mod assimp;
 mod gltf;
 mod joints;
+mod offsets;
 
 use crate::error::{Error, Result};
 use glam::{Mat4, Quat, Vec3};
@@ -84,6 +85,9 @@ pub struct Asset {
     pub clips: Vec<Clip>,
     /// What the importer found suspicious but could read (repeated node names, ...).
     pub warnings: Vec<String>,
+    /// Rotations multiplied after nodes' local transforms in every pose but the bind pose:
+    /// (node, rotation in the node's own frame). Empty as read; see [`Asset::offset_joints`].
+    pub offsets: Vec<(usize, Quat)>,
 }
 
 /// Index of the clip called `name` among `names`: so named exactly, else so named but for
@@ -265,7 +269,8 @@ impl Asset {
         }
     }
 
-    /// Global transform of every node at time `t` [s] of `clip` (rest pose without a clip).
+    /// Global transform of every node at time `t` [s] of `clip` (rest pose without a clip),
+    /// without the joint offsets.
     pub fn node_transforms(&self, clip: Option<usize>, t: f64) -> Vec<Mat4> {
         let local = self.local_transforms(clip, t);
         let mut global: Vec<Mat4> = Vec::with_capacity(local.len());
@@ -282,7 +287,24 @@ impl Asset {
     /// Every posed vertex at time `t` of `clip`: meshes in file order, rigid meshes once per
     /// instance. The order (and count) never changes with time.
     pub fn pose(&self, clip: Option<usize>, t: f64) -> Vec<Vec3> {
-        self.skin(&self.node_transforms(clip, t))
+        let local = self.posed_locals(clip, t);
+        let mut global: Vec<Mat4> = Vec::with_capacity(local.len());
+        for (i, n) in self.nodes.iter().enumerate() {
+            global.push(match n.parent {
+                Some(p) => global[p] * local[i],
+                None => local[i],
+            });
+        }
+        self.skin(&global)
+    }
+
+    /// [`Asset::local_transforms`] with the joint offsets applied: the clip as posed.
+    fn posed_locals(&self, clip: Option<usize>, t: f64) -> Vec<Mat4> {
+        let mut local = self.local_transforms(clip, t);
+        for &(node, turn) in &self.offsets {
+            local[node] *= Mat4::from_quat(turn);
+        }
+        local
     }
 
     /// The bind pose over [`Asset::pose`]'s vertices: skinned meshes as stored (the pose their
@@ -345,7 +367,7 @@ impl Asset {
             Some(p) => bind[p].inverse() * bind[i],
             None => bind[i],
         };
-        let target = self.local_transforms(clip, t);
+        let target = self.posed_locals(clip, t);
         let mut global: Vec<Mat4> = Vec::with_capacity(self.nodes.len());
         for (i, n) in self.nodes.iter().enumerate() {
             let (s0, r0, t0) = local_bind(i).to_scale_rotation_translation();

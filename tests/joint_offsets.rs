@@ -1,0 +1,210 @@
+//! `characters[].joint_offsets`: a rotation added to a joint in every posed frame and never in
+//! the bind pose. Checked on a rig of rigid parts in its rest pose (RobotExpressive: there the
+//! shoulder lies as in its bind pose, so its arm must turn by exactly the rotation given, about
+//! the file's axes, around the shoulder), and on a skinned body in its walk (CesiumMan: what
+//! the arm moves turns rigidly about the shoulder by the angle given, what it does not move
+//! stays to the bit); the pre-roll starts at the bind pose untouched and ends on the offset
+//! clip; names that are no joint and frame sequences (no joints) are refused.
+
+mod common;
+
+use drape::character::{Asset, Character, CharacterOptions, Preroll};
+use glam::{Quat, Vec3};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn offsets(joint: &str, degrees: [f32; 3]) -> BTreeMap<String, [f32; 3]> {
+    BTreeMap::from([(joint.to_string(), degrees)])
+}
+
+/// Per vertex of [`Asset::pose`]: the share of it `joint` and the nodes below it move.
+fn share_moved_by(asset: &Asset, joint: &str) -> Vec<f32> {
+    asset.share_moved_by(&asset.nodes_below(&[joint.to_string()]))
+}
+
+fn node(asset: &Asset, name: &str) -> usize {
+    asset.nodes.iter().position(|n| n.name == name).unwrap()
+}
+
+/// Turns `joint` of `path` by Euler `degrees` at rest and checks every vertex: those `joint`
+/// does not move stay to the bit, those it wholly moves turn by `world` about the joint.
+fn check_rest_turn(path: &Path, joint: &str, degrees: [f32; 3], world: impl Fn(&Asset) -> Quat) {
+    let plain = Asset::open(path).unwrap();
+    let mut turned = plain.clone();
+    turned
+        .offset_joints(&offsets(joint, degrees), path)
+        .unwrap();
+    let centre = plain.node_transforms(None, 0.0)[node(&plain, joint)]
+        .w_axis
+        .truncate();
+    let q = world(&plain);
+    let share = share_moved_by(&plain, joint);
+    let (before, after) = (plain.pose(None, 0.0), turned.pose(None, 0.0));
+    let (mut arm, mut body) = (0, 0);
+    for ((p, moved), s) in before.iter().zip(&after).zip(&share) {
+        if *s == 0.0 {
+            assert_eq!(p, moved, "a vertex {joint} does not move moved");
+            body += 1;
+        } else if *s > 0.9999 {
+            let expected = centre + q * (*p - centre);
+            let size = (*p - centre).length().max(1.0);
+            assert!(
+                moved.distance(expected) < 1e-5 * size,
+                "{moved} where {expected} was expected"
+            );
+            arm += 1;
+        }
+    }
+    assert!(arm > 50 && body > 1000, "arm {arm}, body {body} vertices");
+    // The bind pose is never turned.
+    assert_eq!(turned.bind_pose(), plain.bind_pose());
+}
+
+#[test]
+fn an_arm_at_rest_turns_by_the_rotation_given_about_the_files_axes() {
+    // CesiumMan rests in his bind pose (every joint where its inverse bind matrix puts it), so
+    // a turn about the file's Z axis turns his arm about Z, around the shoulder.
+    let cesium = Path::new("characters/CesiumMan/CesiumMan.glb");
+    let asset = Asset::open(cesium).unwrap();
+    let shoulder = node(&asset, "Skeleton_arm_joint_L__4_");
+    let rest = asset.node_transforms(None, 0.0)[shoulder];
+    assert!(rest.abs_diff_eq(asset.bind_transforms()[shoulder], 1e-4));
+    check_rest_turn(cesium, "Skeleton_arm_joint_L__4_", [0.0, 0.0, 25.0], |_| {
+        Quat::from_rotation_z(25f32.to_radians())
+    });
+    check_rest_turn(cesium, "Skeleton_arm_joint_R", [10.0, 0.0, 0.0], |_| {
+        Quat::from_rotation_x(10f32.to_radians())
+    });
+    // RobotExpressive, a rig of rigid parts, rests elsewhere than its bind pose: the turn is
+    // about the file's axes as the shoulder lies in the bind pose, carried to where it rests
+    // (R B⁻¹ Q B R⁻¹, R and B its rotations at rest and in the bind pose).
+    let robot = Path::new("characters/RobotExpressive/RobotExpressive.glb");
+    check_rest_turn(robot, "Shoulder.L", [0.0, 0.0, 30.0], |asset| {
+        let i = node(asset, "Shoulder.L");
+        let rotation = |m: glam::Mat4| m.to_scale_rotation_translation().1.normalize();
+        let (r, b) = (
+            rotation(asset.node_transforms(None, 0.0)[i]),
+            rotation(asset.bind_transforms()[i]),
+        );
+        r * b.inverse() * Quat::from_rotation_z(30f32.to_radians()) * b * r.inverse()
+    });
+}
+
+#[test]
+fn a_skinned_arm_turns_rigidly_about_its_shoulder_through_the_walk() {
+    let path = Path::new("characters/CesiumMan/CesiumMan.glb");
+    let plain = Asset::open(path).unwrap();
+    let joint = "Skeleton_arm_joint_L__4_";
+    let mut turned = plain.clone();
+    turned
+        .offset_joints(&offsets(joint, [0.0, 0.0, 25.0]), path)
+        .unwrap();
+    let share = share_moved_by(&plain, joint);
+    let shoulder = node(&plain, joint);
+    let clip = plain.clip_index("0");
+    for t in [0.0, 0.37, 0.81, 1.6] {
+        let centre = plain.node_transforms(clip, t)[shoulder].w_axis.truncate();
+        let (before, after) = (plain.pose(clip, t), turned.pose(clip, t));
+        let mut largest = 0.0f32;
+        let mut arm = 0;
+        for ((p, moved), s) in before.iter().zip(&after).zip(&share) {
+            if *s == 0.0 {
+                assert_eq!(p, moved, "t {t}: a vertex the arm does not move moved");
+            } else if *s > 0.999 {
+                let (a, b) = (*p - centre, *moved - centre);
+                assert!((a.length() - b.length()).abs() < 1e-4, "t {t}: not rigid");
+                if a.length() > 0.05 {
+                    largest = largest.max(a.angle_between(b).to_degrees());
+                }
+                arm += 1;
+            }
+        }
+        assert!(arm > 100, "t {t}: {arm} arm vertices");
+        // Turned by 25° about one axis: no vertex further, those across the axis by all of it.
+        assert!(
+            (24.0..=25.01).contains(&largest),
+            "t {t}: turned by {largest}°"
+        );
+    }
+}
+
+#[test]
+fn the_preroll_starts_at_the_untouched_bind_pose_and_ends_on_the_offset_clip() {
+    let path = Path::new("characters/CesiumMan/CesiumMan.glb");
+    let asset = Asset::open(path).unwrap();
+    let spread = offsets("Skeleton_arm_joint_R", [0.0, 0.0, -25.0]);
+    let (lead, shot) = (6, 4);
+    let options = CharacterOptions {
+        clip: Some("0".into()),
+        preroll: Some(Preroll {
+            settle: 2,
+            blend: 4,
+        }),
+        lead_in: lead,
+        joint_offsets: spread.clone(),
+        ..Default::default()
+    };
+    let dressed = Character::from_asset(&asset, path, &options, 60.0, lead + shot).unwrap();
+    assert_eq!(dressed.frames[0], asset.bind_pose());
+    assert_eq!(dressed.bind, asset.bind_pose());
+    let mut turned = asset.clone();
+    turned.offset_joints(&spread, path).unwrap();
+    let clip = asset.clip_index("0");
+    for k in 0..shot {
+        let t = k as f64 / 60.0;
+        assert_eq!(
+            dressed.frames[lead + k],
+            turned.pose(clip, t),
+            "shot frame {k}"
+        );
+        assert_ne!(
+            dressed.frames[lead + k],
+            asset.pose(clip, t),
+            "frame {k} turned"
+        );
+    }
+}
+
+#[test]
+fn names_that_are_no_joint_and_frame_sequences_are_refused() {
+    let path = Path::new("characters/CesiumMan/CesiumMan.glb");
+    let asset = Asset::open(path).unwrap();
+    let options = CharacterOptions {
+        joint_offsets: offsets("Hand_L", [0.0, 0.0, 10.0]),
+        ..Default::default()
+    };
+    let err = Character::from_asset(&asset, path, &options, 60.0, 1).unwrap_err();
+    assert_eq!(err.exit_code(), 2);
+    let text = err.to_string();
+    assert!(
+        text.contains("joint_offsets")
+            && text.contains("\"Hand_L\"")
+            && text.contains("leg_joint_L_1"),
+        "{text}"
+    );
+    // A frame sequence has no joints to turn.
+    let dir = common::temp_dir();
+    for k in 0..2 {
+        let (v, t) = common::cuboid(Vec3::splat(-0.1), Vec3::splat(0.1 + k as f32 * 0.01));
+        common::write_obj(&dir.path().join(format!("body_{k:04}.obj")), &v, &t);
+    }
+    let options = CharacterOptions {
+        joint_offsets: offsets("root", [0.0, 0.0, 10.0]),
+        ..Default::default()
+    };
+    let err = Character::load(dir.path(), &options, 60.0, 2).unwrap_err();
+    assert_eq!(err.exit_code(), 2);
+    assert!(err.to_string().contains("joint_offsets"), "{err}");
+    // Through a scene file: the bake refuses it with exit code 2 and writes nothing.
+    let scene = format!(
+        r#"{{ "name": "bad", "frames": 2,
+             "garments": [{{ "name": "sheet", "resolution": [4, 4], "size": [0.2, 0.2], "position": [0, 2, 0] }}],
+             "characters": [{{ "file": {:?}, "joint_offsets": {{ "Hand_L": [0, 0, 10] }} }}] }}"#,
+        std::fs::canonicalize(path).unwrap()
+    );
+    common::write(dir.path(), "scene.json", &scene);
+    let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
+    assert_eq!(out.status.code(), Some(2), "{}", common::stderr(&out));
+    assert!(common::stderr(&out).contains("joint_offsets"));
+    assert!(!dir.path().join("out/report.json").exists());
+}
