@@ -354,3 +354,49 @@ fn inspect_warns_of_a_self_colliding_sheet_without_shear_springs() {
         assert_eq!(says, warned, "shear {shear}: {text}");
     }
 }
+
+#[test]
+fn inspect_warns_of_a_garment_that_crosses_itself_as_modelled() {
+    // CesiumMan's skin pushed 2.5 cm out along his own normals crosses itself where they
+    // converge (his armpits: the top `garments/generate.py` wrote that way before 2026-12-05
+    // had 44 pairs, by a Python segment–triangle test on the OBJ). The top it writes now,
+    // along smoothed normals, has none as modelled; on a lattice aligned with his file's axes
+    // (the scene below) the particles that carry its armpits make 2 pairs, on the one of
+    // `scenes/top_walk.json` (turned 150°) none.
+    let dir = temp_dir();
+    let root = std::env::current_dir().unwrap();
+    let body = root.join("characters/CesiumMan/CesiumMan.glb");
+    for (mesh, warned, turned) in [
+        (
+            common::pushed_skin(0.025, dir.path()),
+            Some("as modelled"),
+            0,
+        ),
+        (
+            root.join("garments/cesium_top.obj"),
+            Some("as its lattice carries it"),
+            0,
+        ),
+        (root.join("garments/cesium_top.obj"), None, 150),
+    ] {
+        write(
+            dir.path(),
+            "scene.json",
+            &format!(
+                r#"{{ "garments": [{{ "name": "top", "kind": "mesh", "mesh": {mesh:?}, "on": "man", "spacing": 0.02 }}],
+                     "characters": [{{ "name": "man", "file": {body:?}, "rotation": [0, {turned}, 0] }}] }}"#
+            ),
+        );
+        let out = drape(dir.path(), &["inspect", "scene.json"]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let line = (text.lines())
+            .find(|l| l.contains("warning: garment top: its surface passes through itself"));
+        assert_eq!(
+            line.map(|l| warned.is_some_and(|how| l.contains(how))),
+            warned.map(|_| true),
+            "{} turned {turned}: {text}",
+            mesh.display()
+        );
+    }
+}

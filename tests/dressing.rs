@@ -93,58 +93,12 @@ fn the_blend_starts_at_the_bind_pose_and_ends_at_the_clips_first_frame() {
     }
 }
 
-/// An OBJ of CesiumMan's bind pose, welded by position and pushed `offset` out along the
-/// angle-weighted vertex normals: a garment that is the body's own skin.
-fn pushed_skin(offset: f32, out: &Path) -> PathBuf {
-    let asset = Asset::open(&cesium()).unwrap();
-    let vertices = asset.bind_pose();
-    let triangles = asset.triangles();
-    let mut index = std::collections::HashMap::new();
-    let mut welded: Vec<Vec3> = Vec::new();
-    let remap: Vec<usize> = vertices
-        .iter()
-        .map(|v| {
-            *index
-                .entry(v.to_array().map(f32::to_bits))
-                .or_insert_with(|| {
-                    welded.push(*v);
-                    welded.len() - 1
-                })
-        })
-        .collect();
-    let faces: Vec<[usize; 3]> = triangles
-        .iter()
-        .map(|t| t.map(|i| remap[i as usize]))
-        .filter(|[a, b, c]| a != b && b != c && a != c)
-        .collect();
-    let mut normals = vec![Vec3::ZERO; welded.len()];
-    for f in &faces {
-        let [a, b, c] = f.map(|i| welded[i]);
-        let n = (b - a).cross(c - a).normalize_or_zero();
-        for k in 0..3 {
-            let (p, q, r) = (welded[f[k]], welded[f[(k + 1) % 3]], welded[f[(k + 2) % 3]]);
-            normals[f[k]] += (q - p).angle_between(r - p) * n;
-        }
-    }
-    let mut text = String::new();
-    for (v, n) in welded.iter().zip(&normals) {
-        let p = *v + n.normalize_or_zero() * offset;
-        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for f in &faces {
-        text += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
-    }
-    let path = out.join("skin.obj");
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
 #[test]
 fn a_garment_on_a_character_lines_up_with_it_however_it_is_placed() {
     // The body's own skin pushed 1 cm out is 1 cm outside the body everywhere, once `on` puts
     // it where the character is: scaled, turned and moved (Z up, half size, 30° about Y).
     let dir = common::temp_dir();
-    let skin = pushed_skin(0.01, dir.path());
+    let skin = common::pushed_skin(0.01, dir.path());
     let text = format!(
         r#"{{ "frames": 1, "frame_start": 1001,
               "garments": [{{ "kind": "mesh", "mesh": {skin:?}, "on": "body", "spacing": 0.05 }}],

@@ -435,6 +435,29 @@ fn odd_but_valid_scenes_bake() {
             keeps: &[("out/report.json", None)],
             leaves_no: &[],
         },
+        Case {
+            // Two squares through each other: square A in the plane z = 0 (split along y = x),
+            // square B in x = 0.1 (split along y = z). Their line, x = 0.1 on z = 0, runs
+            // through A's two triangles (below and above y = 0.1) and B's two (below and above
+            // y = 0): three pairs overlap along it, A's lower with B's lower and upper, A's upper
+            // with B's upper. (B on a lattice plane: the lattice keeps a sheet on its sites.)
+            name: "a garment mesh that passes through itself as modelled",
+            files: &[
+                (
+                    "scene.json",
+                    r#"{ "frames": 2, "backend": "cpu", "garments": [{ "name": "cross", "kind": "mesh", "mesh": "cross.obj", "spacing": 0.05, "position": [0, 1, 0] }] }"#,
+                ),
+                (
+                    "cross.obj",
+                    "v -0.2 -0.2 0\nv 0.2 -0.2 0\nv 0.2 0.2 0\nv -0.2 0.2 0\nv 0.1 -0.2 -0.2\nv 0.1 -0.2 0.2\nv 0.1 0.2 0.2\nv 0.1 0.2 -0.2\nf 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\n",
+                ),
+            ],
+            args: &["bake", "scene.json", "--out", "out"],
+            code: 0,
+            says: &["garment cross", "passes through itself before any simulation, in 3 pairs", "as modelled"],
+            keeps: &[("out/report.json", None)],
+            leaves_no: &[],
+        },
     ];
     for case in &cases {
         check(case);

@@ -50,7 +50,9 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     for line in level_of_detail(&scene, &garments) {
         println!("  {line}");
     }
-    for line in drape::garment::advice::folding_warnings(&garments, scene.particle_collisions) {
+    let advice = drape::garment::advice::folding_warnings(&garments, scene.particle_collisions);
+    let crossed = drape::collide::crossings::modelled_warnings(&garments);
+    for line in advice.iter().chain(&crossed) {
         println!("  warning: {line}");
     }
     for (c, r) in model.colour_ranges.iter().enumerate() {

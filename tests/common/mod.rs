@@ -274,3 +274,52 @@ pub fn read_obj(path: &Path) -> (Vec<glam::Vec3>, Vec<[u32; 3]>) {
     }
     (v, t)
 }
+
+/// An OBJ of CesiumMan's bind pose, welded by position and pushed `offset` out along the
+/// angle-weighted vertex normals: a garment that is the body's own skin.
+pub fn pushed_skin(offset: f32, out: &Path) -> PathBuf {
+    let cesium = std::env::current_dir()
+        .unwrap()
+        .join("characters/CesiumMan/CesiumMan.glb");
+    let asset = drape::character::Asset::open(&cesium).unwrap();
+    let vertices = asset.bind_pose();
+    let triangles = asset.triangles();
+    let mut index = std::collections::HashMap::new();
+    let mut welded: Vec<glam::Vec3> = Vec::new();
+    let remap: Vec<usize> = vertices
+        .iter()
+        .map(|v| {
+            *index
+                .entry(v.to_array().map(f32::to_bits))
+                .or_insert_with(|| {
+                    welded.push(*v);
+                    welded.len() - 1
+                })
+        })
+        .collect();
+    let faces: Vec<[usize; 3]> = triangles
+        .iter()
+        .map(|t| t.map(|i| remap[i as usize]))
+        .filter(|[a, b, c]| a != b && b != c && a != c)
+        .collect();
+    let mut normals = vec![glam::Vec3::ZERO; welded.len()];
+    for f in &faces {
+        let [a, b, c] = f.map(|i| welded[i]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        for k in 0..3 {
+            let (p, q, r) = (welded[f[k]], welded[f[(k + 1) % 3]], welded[f[(k + 2) % 3]]);
+            normals[f[k]] += (q - p).angle_between(r - p) * n;
+        }
+    }
+    let mut text = String::new();
+    for (v, n) in welded.iter().zip(&normals) {
+        let p = *v + n.normalize_or_zero() * offset;
+        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for f in &faces {
+        text += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
+    }
+    let path = out.join("skin.obj");
+    std::fs::write(&path, text).unwrap();
+    path
+}
