@@ -822,23 +822,6 @@ fn gltf_by_index_gives_assimps_frames_for_every_shipped_clip() {
     }
 }
 
-/// The largest distance between two characters' triangle corners over their frames, triangle
-/// by triangle (formats split vertices differently: FBX and Collada keep one per corner).
-fn worst_corner_distance(a: &Character, b: &Character) -> f32 {
-    let (ta, tb) = (a.triangles_of(0), b.triangles_of(0));
-    assert_eq!(ta.len(), tb.len(), "triangle counts");
-    assert_eq!(a.frames.len(), b.frames.len(), "frame counts");
-    let mut worst = 0.0f32;
-    for (fa, fb) in a.frames.iter().zip(&b.frames) {
-        for (x, y) in ta.iter().zip(tb) {
-            for c in 0..3 {
-                worst = worst.max(fa[x[c] as usize].distance(fb[y[c] as usize]));
-            }
-        }
-    }
-    worst
-}
-
 #[test]
 fn fbx_and_collada_copies_give_the_gltf_frames() {
     // tests/assets/CesiumMan/README.md says how they were written (Blender 3.4's FBX exporter,
@@ -874,7 +857,7 @@ fn fbx_and_collada_copies_give_the_gltf_frames() {
             warning.contains("read as centimetres (scale 0.01)"),
             "{warning}"
         );
-        let worst = worst_corner_distance(&other, &gltf);
+        let worst = common::worst_corner_distance(&other, &gltf);
         eprintln!("{name}: frames within {worst:.2e} m of the glTF's");
         assert!(worst < 1e-5, "{name}: frames {worst} m from the glTF's");
     }

@@ -4,7 +4,8 @@
 //! the file's axes, around the shoulder), and on a skinned body in its walk (CesiumMan: what
 //! the arm moves turns rigidly about the shoulder by the angle given, what it does not move
 //! stays to the bit); the pre-roll starts at the bind pose untouched and ends on the offset
-//! clip; names that are no joint and frame sequences (no joints) are refused.
+//! clip; the FBX and Collada copies of CesiumMan turn as the glTF does; names that are no joint
+//! and frame sequences (no joints) are refused.
 
 mod common;
 
@@ -125,6 +126,42 @@ fn a_skinned_arm_turns_rigidly_about_its_shoulder_through_the_walk() {
             (24.0..=25.01).contains(&largest),
             "t {t}: turned by {largest}°"
         );
+    }
+}
+
+#[test]
+fn fbx_and_collada_copies_turn_as_the_gltf_does() {
+    // tests/assets/CesiumMan: Blender's FBX (centimetres) and assimp's Collada from it, read
+    // through assimp, give the glTF's frames (tests/characters.rs); turned by the same offsets
+    // (about the file's axes in the bind pose) they still give the glTF's, and not its
+    // unturned frames.
+    let spread = BTreeMap::from([
+        ("Skeleton_arm_joint_L__4_".to_string(), [0.0, 0.0, 25.0]),
+        ("Skeleton_arm_joint_R".to_string(), [10.0, 0.0, -25.0]),
+    ]);
+    let frames = 40;
+    let gltf = Path::new("characters/CesiumMan/CesiumMan.glb");
+    let sample = |path: &Path, scale: f32, offsets: &BTreeMap<String, [f32; 3]>| {
+        let options = CharacterOptions {
+            clip: Some("0".into()),
+            scale,
+            joint_offsets: offsets.clone(),
+            ..Default::default()
+        };
+        Character::load(path, &options, 60.0, frames).unwrap()
+    };
+    let turned = sample(gltf, 1.0, &spread);
+    let plain = sample(gltf, 1.0, &BTreeMap::new());
+    for name in ["CesiumMan.fbx", "CesiumMan.dae"] {
+        let path = Path::new("tests/assets/CesiumMan").join(name);
+        let other = sample(&path, 0.01, &spread);
+        let worst = common::worst_corner_distance(&other, &turned);
+        assert!(
+            worst < 1e-5,
+            "{name}: {worst} m from the glTF's turned frames"
+        );
+        let apart = common::worst_corner_distance(&other, &plain);
+        assert!(apart > 0.05, "{name}: {apart} m from the unturned frames");
     }
 }
 

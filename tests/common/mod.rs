@@ -323,3 +323,23 @@ pub fn pushed_skin(offset: f32, out: &Path) -> PathBuf {
     std::fs::write(&path, text).unwrap();
     path
 }
+
+/// The largest distance between two characters' triangle corners over their frames, triangle
+/// by triangle (formats split vertices differently: FBX and Collada keep one per corner).
+pub fn worst_corner_distance(
+    a: &drape::character::Character,
+    b: &drape::character::Character,
+) -> f32 {
+    let (ta, tb) = (a.triangles_of(0), b.triangles_of(0));
+    assert_eq!(ta.len(), tb.len(), "triangle counts");
+    assert_eq!(a.frames.len(), b.frames.len(), "frame counts");
+    let mut worst = 0.0f32;
+    for (fa, fb) in a.frames.iter().zip(&b.frames) {
+        for (x, y) in ta.iter().zip(tb) {
+            for c in 0..3 {
+                worst = worst.max(fa[x[c] as usize].distance(fb[y[c] as usize]));
+            }
+        }
+    }
+    worst
+}
