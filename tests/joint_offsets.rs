@@ -1,12 +1,12 @@
 //! `characters[].joint_offsets`: a rotation added to a joint in every posed frame and never in
-//! the bind pose. Checked on a rig of rigid parts in its rest pose (RobotExpressive: there the
-//! shoulder lies as in its bind pose, so its arm must turn by exactly the rotation given, about
-//! the file's axes, around the shoulder), and on a skinned body in its walk (CesiumMan: what
-//! the arm moves turns rigidly about the shoulder by the angle given, what it does not move
-//! stays to the bit); the pre-roll starts at the bind pose untouched and ends on the offset
-//! clip; the FBX and Collada copies of CesiumMan turn as the glTF does; names that are no joint
-//! and frame sequences (no joints) are refused.
-
+//! the bind pose. Checked at rest on a skinned body that rests in its bind pose (CesiumMan: his
+//! arm turns by exactly the rotation given, about the file's axes, around the shoulder) and on
+//! a rig of rigid parts that rests elsewhere (RobotExpressive: the turn carried from the bind
+//! pose to where the shoulder rests, the shoulder's two nodes of one name turned once); in his
+//! walk (what the arm moves turns rigidly about the shoulder by the angle given, what it does
+//! not move stays to the bit); the pre-roll starts at the bind pose untouched and ends on the
+//! offset clip; the FBX and Collada copies of CesiumMan turn as the glTF does; names that are
+//! no joint and frame sequences (no joints) are refused.
 mod common;
 
 use drape::character::{Asset, Character, CharacterOptions, Preroll};
