@@ -400,3 +400,19 @@ fn inspect_warns_of_a_garment_that_crosses_itself_as_modelled() {
         );
     }
 }
+
+#[test]
+fn inspect_lists_a_characters_joint_offsets() {
+    let dir = temp_dir();
+    let scene = std::env::current_dir()
+        .unwrap()
+        .join("scenes/skirt_walk.json");
+    let out = drape(dir.path(), &["inspect", scene.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        text.contains("joint offsets, in every posed frame but the bind pose")
+            && text.contains("Skeleton_arm_joint_R (0°, 0°, -25°)"),
+        "{text}"
+    );
+}

@@ -7,6 +7,7 @@
 //! not move stays to the bit); the pre-roll starts at the bind pose untouched and ends on the
 //! offset clip; the FBX and Collada copies of CesiumMan turn as the glTF does; names that are
 //! no joint and frame sequences (no joints) are refused.
+
 mod common;
 
 use drape::character::{Asset, Character, CharacterOptions, Preroll};

@@ -76,6 +76,15 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
                 if scene.output.preroll { ", and exports them" } else { "" }
             );
         }
+        if !c.joint_offsets.is_empty() {
+            let turns: Vec<String> = (c.joint_offsets.iter())
+                .map(|(joint, [x, y, z])| format!("{joint} ({x}°, {y}°, {z}°)"))
+                .collect();
+            println!(
+                "    joint offsets, in every posed frame but the bind pose (about the file's axes): {}",
+                turns.join(", ")
+            );
+        }
     }
     for line in dressing(&scene, &garments)? {
         println!("  {line}");
