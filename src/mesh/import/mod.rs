@@ -272,7 +272,11 @@ impl Asset {
     /// Global transform of every node at time `t` [s] of `clip` (rest pose without a clip),
     /// without the joint offsets.
     pub fn node_transforms(&self, clip: Option<usize>, t: f64) -> Vec<Mat4> {
-        let local = self.local_transforms(clip, t);
+        self.globals(&self.local_transforms(clip, t))
+    }
+
+    /// Every node's global transform from every node's transform relative to its parent.
+    fn globals(&self, local: &[Mat4]) -> Vec<Mat4> {
         let mut global: Vec<Mat4> = Vec::with_capacity(local.len());
         for (i, n) in self.nodes.iter().enumerate() {
             let g = match n.parent {
@@ -287,15 +291,7 @@ impl Asset {
     /// Every posed vertex at time `t` of `clip`: meshes in file order, rigid meshes once per
     /// instance. The order (and count) never changes with time.
     pub fn pose(&self, clip: Option<usize>, t: f64) -> Vec<Vec3> {
-        let local = self.posed_locals(clip, t);
-        let mut global: Vec<Mat4> = Vec::with_capacity(local.len());
-        for (i, n) in self.nodes.iter().enumerate() {
-            global.push(match n.parent {
-                Some(p) => global[p] * local[i],
-                None => local[i],
-            });
-        }
-        self.skin(&global)
+        self.skin(&self.globals(&self.posed_locals(clip, t)))
     }
 
     /// [`Asset::local_transforms`] with the joint offsets applied: the clip as posed.
