@@ -6,7 +6,8 @@
 //! unless asked, and `drape render` numbers an exported pre-roll's images as the bake did; the
 //! shipped robot's cape runs with no particle inside the robot, pre-roll included; the shipped
 //! skirt and top walk with no particle deeper than half a shell radius inside CesiumMan, his
-//! arms spread by `joint_offsets` where his clip passes them into his body.
+//! arms spread by `joint_offsets` where his clip passes them into his body; where it does,
+//! `bake::limbs` names the joints, and its counts add up to the crossings frame by frame.
 
 mod common;
 
@@ -417,4 +418,53 @@ fn the_shipped_skirt_and_top_walk_with_no_particle_deeper_than_half_a_shell_radi
             "{name}: the spread arms still cross the body"
         );
     }
+}
+
+#[test]
+fn inspect_names_the_joints_of_his_arms_passing_into_his_body() {
+    // CesiumMan's walk as `skirt_walk` bakes it, pre-roll included, without its offsets: the
+    // frames where his mesh crosses itself, grouped by the joints that move the two triangles,
+    // must add up to the crossings counted frame by frame here, and every group is one of his
+    // arms' joints into another part of him (his hands into his thighs, his arms into his
+    // sides: Python on his written frames found arm points inside his body and nothing else).
+    let path = root().join("scenes/skirt_walk.json");
+    let mut scene = drape::scene::Scene::load(&path).unwrap();
+    scene.characters[0].joint_offsets.clear();
+    let (frames, found) = drape::bake::limbs::body_crossings(&scene, 0)
+        .unwrap()
+        .unwrap();
+    assert_eq!(frames, 170);
+    let mut options = scene.characters[0].options();
+    options.lead_in = 50;
+    let body = Character::load(&scene.character_path(0), &options, 60.0, 170).unwrap();
+    let rest = drape::collide::crossings::SelfCrossings::new(body.frame(0), body.triangles_of(0));
+    let mut counted_in_all = 0;
+    for k in 0..170 {
+        let frame = 951 + k as i64;
+        let counted = rest.count(body.frame(k), body.triangles_of(0));
+        let grouped: usize = (found.iter()).filter(|c| c.frames.contains(&frame)).count();
+        assert_eq!(counted > 0, grouped > 0, "frame {frame}: {counted} pairs");
+        counted_in_all += counted;
+    }
+    let total: usize = found.iter().map(|c| c.total).sum();
+    assert_eq!(total, counted_in_all);
+    assert!(total > 100, "{found:?}");
+    for c in &found {
+        let arm = |j: &str| j.starts_with("Skeleton_arm_joint");
+        assert!(arm(&c.joints.0) != arm(&c.joints.1), "{c:?}");
+    }
+    // The worst is his left hand in his hips and thigh, frames 1030–1038.
+    assert_eq!(
+        found[0].joints,
+        (
+            "Skeleton_arm_joint_L__2_".into(),
+            "Skeleton_torso_joint_1".into()
+        )
+    );
+    // Spread as the scene ships, none is left.
+    let shipped = drape::scene::Scene::load(&path).unwrap();
+    let (_, none) = drape::bake::limbs::body_crossings(&shipped, 0)
+        .unwrap()
+        .unwrap();
+    assert!(none.is_empty(), "{none:?}");
 }

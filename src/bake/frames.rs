@@ -583,7 +583,7 @@ fn self_crossing_warnings(report: &Report) -> Vec<String> {
             }
             let &(worst, most) = crossed.iter().max_by_key(|&&(f, n)| (n, std::cmp::Reverse(f)))?;
             Some(format!(
-                "character {name}: its mesh passes through itself in {} frames from frame {} (the most {most} pairs of its triangles, in frame {worst}), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: one part of the body sinks into another there (a hand into a thigh), and cloth caught between them has no place outside the mesh; character_crossings_per_frame lists the frames; characters[].joint_offsets can spread the limbs clear of the body",
+                "character {name}: its mesh passes through itself in {} frames from frame {} (the most {most} pairs of its triangles, in frame {worst}), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: one part of the body sinks into another there (a hand into a thigh), and cloth caught between them has no place outside the mesh; character_crossings_per_frame lists the frames and drape inspect the joints; characters[].joint_offsets can spread the limbs clear of the body",
                 crossed.len(),
                 crossed[0].0,
                 deep.len(),

@@ -13,6 +13,7 @@ pub mod characters;
 pub mod checkpoint;
 pub mod dress;
 mod frames;
+pub mod limbs;
 mod output;
 pub mod prepare;
 mod report;

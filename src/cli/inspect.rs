@@ -85,6 +85,9 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
                 turns.join(", ")
             );
         }
+        if let Some(line) = body_crossings(&scene, i)? {
+            println!("    {line}");
+        }
     }
     for line in dressing(&scene, &garments)? {
         println!("  {line}");
@@ -188,6 +191,44 @@ fn dressing(
         ));
     }
     Ok(lines)
+}
+
+/// Where character `k`'s mesh passes through itself over the bake's frames, by the joints that
+/// move the triangles (None for a frame sequence): the limbs `joint_offsets` would spread.
+fn body_crossings(scene: &drape::scene::Scene, k: usize) -> anyhow::Result<Option<String>> {
+    let Some((frames, found)) = drape::bake::limbs::body_crossings(scene, k)? else {
+        return Ok(None);
+    };
+    if found.is_empty() {
+        return Ok(Some(format!(
+            "its mesh passes through itself in none of the {frames} frames (pre-roll included)"
+        )));
+    }
+    let mut crossed: Vec<i64> = found.iter().flat_map(|c| c.frames.clone()).collect();
+    crossed.sort_unstable();
+    crossed.dedup();
+    let listed: Vec<String> = (found.iter().take(4))
+        .map(|c| {
+            format!(
+                "{} into {} in {} frames ({}–{}, up to {} pairs of triangles in one)",
+                c.joints.0,
+                c.joints.1,
+                c.frames.len(),
+                c.frames[0],
+                c.frames[c.frames.len() - 1],
+                c.most
+            )
+        })
+        .collect();
+    let more = match found.len() {
+        n if n > 4 => format!(" and {} more pairs of joints", n - 4),
+        _ => String::new(),
+    };
+    Ok(Some(format!(
+        "warning: its mesh passes through itself in {} of the {frames} frames (pre-roll included), by the joints that move its triangles: {}{more}; cloth caught there has no place outside the mesh (characters[].joint_offsets can spread the limbs)",
+        crossed.len(),
+        listed.join("; ")
+    )))
 }
 
 /// Level-of-detail advice: each garment's particle spacing (its longest structural rest length)

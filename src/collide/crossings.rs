@@ -180,16 +180,21 @@ impl SelfCrossings {
         }
     }
 
-    /// The pairs of `triangles` (over `positions`) that pass through each other and lay apart
+    /// How many pairs of `triangles` (over `positions`) pass through each other and lay apart
     /// in the rest pose.
     pub fn count(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
+        self.pairs(positions, triangles).len()
+    }
+
+    /// Those pairs, as indices into `triangles` (the lower first), sorted.
+    pub fn pairs(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
         let gap = |(i, j): &(u32, u32)| {
             let ((a_lo, a_hi), (b_lo, b_hi)) = (self.rest[*i as usize], self.rest[*j as usize]);
             (a_lo - b_hi).max(b_lo - a_hi).max(Vec3::ZERO).length()
         };
-        (pairs(positions, triangles).iter())
-            .filter(|p| gap(p) > self.apart)
-            .count()
+        let mut found = pairs(positions, triangles);
+        found.retain(|p| gap(p) > self.apart);
+        found
     }
 }
 

@@ -72,6 +72,40 @@ impl Asset {
         share
     }
 
+    /// Per triangle of `triangles` (over [`Asset::pose`]'s vertices): the node that moves it
+    /// most, by its three vertices' skin weights (a rigid mesh's by the node that carries it);
+    /// None where no node moves it.
+    pub fn triangle_joints(&self, triangles: &[[u32; 3]]) -> Vec<Option<usize>> {
+        let mut weights: Vec<Vec<(usize, f32)>> = Vec::new();
+        for m in &self.meshes {
+            if m.bones.is_empty() {
+                for &node in &m.instances {
+                    weights.extend(std::iter::repeat_n(vec![(node, 1.0)], m.vertices.len()));
+                }
+            } else {
+                weights.extend(m.weights.iter().map(|vertex| {
+                    let on = vertex.iter().map(|&(b, w)| (m.bones[b as usize].node, w));
+                    on.collect()
+                }));
+            }
+        }
+        (triangles.iter())
+            .map(|t| {
+                let mut sums: Vec<(usize, f32)> = Vec::new();
+                for &(node, w) in t.iter().flat_map(|&v| &weights[v as usize]) {
+                    match sums.iter_mut().find(|(n, _)| *n == node) {
+                        Some(sum) => sum.1 += w,
+                        None => sums.push((node, w)),
+                    }
+                }
+                let most = sums
+                    .iter()
+                    .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+                most.map(|&(node, _)| node)
+            })
+            .collect()
+    }
+
     /// Keeps the `triangles` (over [`Asset::pose`]'s vertices) that `joints` lets collide: with
     /// `include`, those mostly moved by the joints named and the joints below them; with
     /// `exclude`, the others. Refuses a name that is no joint of the file, and a selection
