@@ -362,7 +362,7 @@ fn inspect_warns_of_a_garment_that_crosses_itself_as_modelled() {
     // had 44 pairs, by a Python segment–triangle test on the OBJ). The top it writes now,
     // along smoothed normals, has none as modelled; on a lattice aligned with his file's axes
     // (the scene below) the particles that carry its armpits make 2 pairs, on the one of
-    // `scenes/top_walk.json` (turned 150°) none.
+    // a 2 cm lattice turned 150° as `scenes/top_walk.json`'s is, none.
     let dir = temp_dir();
     let root = std::env::current_dir().unwrap();
     let body = root.join("characters/CesiumMan/CesiumMan.glb");

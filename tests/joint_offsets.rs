@@ -201,6 +201,22 @@ fn the_preroll_starts_at_the_untouched_bind_pose_and_ends_on_the_offset_clip() {
             "frame {k} turned"
         );
     }
+    // Through the blend the offset comes in with it: none at its start (the bind pose), more
+    // at each frame, all of it where the clip starts.
+    let without = CharacterOptions {
+        joint_offsets: BTreeMap::new(),
+        ..options
+    };
+    let plain = Character::from_asset(&asset, path, &without, 60.0, lead + shot).unwrap();
+    let apart = |k: usize| {
+        (dressed.frames[k].iter().zip(&plain.frames[k]))
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0f32, f32::max)
+    };
+    assert_eq!(apart(2), 0.0, "the blend starts at the bind pose");
+    for k in 3..=lead {
+        assert!(apart(k) > apart(k - 1), "frame {k}: {} m", apart(k));
+    }
 }
 
 #[test]
@@ -243,6 +259,89 @@ fn names_that_are_no_joint_and_frame_sequences_are_refused() {
     common::write(dir.path(), "scene.json", &scene);
     let out = common::drape(dir.path(), &["bake", "scene.json", "--out", "out"]);
     assert_eq!(out.status.code(), Some(2), "{}", common::stderr(&out));
-    assert!(common::stderr(&out).contains("joint_offsets"));
+    assert!(
+        common::stderr(&out).contains("characters[0].joint_offsets"),
+        "{}",
+        common::stderr(&out)
+    );
     assert!(!dir.path().join("out/report.json").exists());
+}
+
+/// A rig of one rigid part: a root, a joint at (1, 0, 0) with `linear` as its bind transform's
+/// linear part, and a triangle on a node below it.
+fn one_part(linear: glam::Mat3) -> Asset {
+    use drape::mesh::import::{Mesh, Node};
+    let node = |name: &str, parent, local| Node {
+        name: name.into(),
+        parent,
+        local,
+    };
+    let joint = glam::Mat4::from_translation(Vec3::X) * glam::Mat4::from_mat3(linear);
+    Asset {
+        nodes: vec![
+            node("root", None, glam::Mat4::IDENTITY),
+            node("joint", Some(0), joint),
+            node("part", Some(1), glam::Mat4::IDENTITY),
+        ],
+        meshes: vec![Mesh {
+            name: "part".into(),
+            node: "part".into(),
+            material: String::new(),
+            vertices: vec![Vec3::new(0.5, 0.0, 0.0), Vec3::Y, Vec3::new(0.2, 0.3, 0.7)],
+            triangles: vec![[0, 1, 2]],
+            bones: Vec::new(),
+            weights: Vec::new(),
+            instances: vec![2],
+            uvs: None,
+        }],
+        clips: Vec::new(),
+        warnings: Vec::new(),
+        offsets: Vec::new(),
+    }
+}
+
+#[test]
+fn scaled_and_mirrored_joints_turn_about_the_files_axes_and_euler_angles_compose_in_order() {
+    // Euler [30, 40, 0] is the scene's `rotation` convention: about X, then the turned Y.
+    let two_axes =
+        Quat::from_rotation_x(30f32.to_radians()) * Quat::from_rotation_y(40f32.to_radians());
+    for (linear, what) in [
+        (glam::Mat3::IDENTITY, "plain"),
+        (
+            glam::Mat3::from_diagonal(Vec3::new(2.0, 1.0, 0.5)),
+            "scaled unevenly",
+        ),
+        (
+            glam::Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0)),
+            "mirrored",
+        ),
+        (
+            glam::Mat3::from_rotation_z(0.7) * glam::Mat3::from_diagonal(Vec3::splat(3.0)),
+            "turned and scaled",
+        ),
+    ] {
+        let plain = one_part(linear);
+        let mut turned = plain.clone();
+        turned
+            .offset_joints(&offsets("joint", [30.0, 40.0, 0.0]), Path::new("rig"))
+            .unwrap();
+        let pivot = Vec3::X;
+        for (p, moved) in plain.pose(None, 0.0).iter().zip(turned.pose(None, 0.0)) {
+            let expected = pivot + two_axes * (*p - pivot);
+            assert!(
+                moved.distance(expected) < 1e-5,
+                "{what}: {moved} where {expected}"
+            );
+        }
+        let uneven = turned
+            .warnings
+            .iter()
+            .any(|w| w.contains("scaled unevenly"));
+        assert_eq!(
+            uneven,
+            what == "scaled unevenly",
+            "{what}: {:?}",
+            turned.warnings
+        );
+    }
 }

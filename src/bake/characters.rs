@@ -39,7 +39,20 @@ pub fn load_characters(
         options.lead_in = scene.lead_in as usize;
         options.hidden = garment_meshes_in(scene, &path);
         let frames = scene.frames as usize + 1;
-        let mut character = Character::load(&path, &options, scene.fps, frames)?;
+        // A joint offset the file cannot take is the scene entry's, which the error names.
+        let mut character =
+            Character::load(&path, &options, scene.fps, frames).map_err(|e| match e {
+                Error::InvalidField {
+                    file,
+                    field,
+                    reason,
+                } if field == "joint_offsets" => Error::InvalidField {
+                    file,
+                    field: format!("characters[{i}].joint_offsets"),
+                    reason,
+                },
+                e => e,
+            })?;
         let name = scene.character_name(i);
         warnings.extend(std::mem::take(&mut character.warnings));
         let odd_size = character.size_warning(spec.scale);

@@ -14,30 +14,46 @@ use std::collections::BTreeMap;
 pub struct BodyCrossing {
     /// The joints that move the two triangles most, in name order.
     pub joints: (String, String),
-    /// The frames (numbered as the bake numbers them, pre-roll before `frame_start`).
-    pub frames: Vec<i64>,
-    /// The most pairs of their triangles through each other in one frame.
-    pub most: usize,
-    /// Those pairs summed over the frames.
-    pub total: usize,
+    /// Each frame with any (numbered as the bake numbers them, pre-roll before
+    /// `frame_start`) and how many pairs of their triangles pass through each other there.
+    pub frames: Vec<(i64, usize)>,
+}
+
+impl BodyCrossing {
+    /// The most pairs in one frame.
+    pub fn most(&self) -> usize {
+        self.frames.iter().map(|f| f.1).max().unwrap_or(0)
+    }
+
+    /// The pairs summed over the frames.
+    pub fn total(&self) -> usize {
+        self.frames.iter().map(|f| f.1).sum()
+    }
 }
 
 /// The frames a bake of `scene` gives character `k` (pre-roll included) and where its mesh
-/// passes through itself in them (`collide::crossings::SelfCrossings`, as the bake counts
-/// them), grouped by the two joints that move the triangles, most pairs first. None for a
-/// frame sequence, which has no joints, and for a character that does not move.
+/// passes through itself in them, counted as the bake counts them (its
+/// `character_crossings_per_frame`: `collide::crossings::SelfCrossings` from where the bake
+/// starts), grouped by the two joints that move the triangles, most pairs first. None for a
+/// frame sequence, which has no joints (refused if the scene gives it joint offsets), and for
+/// a character that does not move.
 pub fn body_crossings(scene: &Scene, k: usize) -> Result<Option<(usize, Vec<BodyCrossing>)>> {
     let path = scene.character_path(k);
-    if path.is_dir() || sequence_files(&path)?.len() != 1 {
-        return Ok(None);
-    }
     let mut options = scene.characters[k].options();
     options.hidden = super::characters::garment_meshes_in(scene, &path);
     let lead = scene.preroll_frames() as usize;
     options.lead_in = lead;
+    if path.is_dir() || sequence_files(&path)?.len() != 1 {
+        if !options.joint_offsets.is_empty() {
+            // Refused as the bake refuses it.
+            Character::load(&path, &options, scene.fps, 1)?;
+        }
+        return Ok(None);
+    }
     let asset = Asset::open(&path)?;
-    let frames = lead + scene.frames as usize;
-    let character = Character::from_asset(&asset, &path, &options, scene.fps, frames)?;
+    // As the bake loads it: frame 0 where it starts, frame b + 1 shown by baked frame b.
+    let baked = lead + scene.frames as usize;
+    let character = Character::from_asset(&asset, &path, &options, scene.fps, baked + 1)?;
     if character.frames.len() < 2 {
         return Ok(None);
     }
@@ -51,28 +67,24 @@ pub fn body_crossings(scene: &Scene, k: usize) -> Result<Option<(usize, Vec<Body
     };
     let rest = SelfCrossings::new(character.frame(0), triangles);
     let mut found: BTreeMap<(String, String), BodyCrossing> = BTreeMap::new();
-    for f in 0..character.frames.len() {
-        let number = scene.frame_start as i64 - lead as i64 + f as i64;
+    for b in 0..baked {
+        let number = scene.frame_start as i64 - lead as i64 + b as i64;
         let mut this_frame: BTreeMap<(String, String), usize> = BTreeMap::new();
-        for (a, b) in rest.pairs(character.frame(f), triangles) {
-            let (a, b) = (name(a), name(b));
+        for (a, c) in rest.pairs(character.frame(b + 1), triangles) {
+            let (a, c) = (name(a), name(c));
             *this_frame
-                .entry(if a <= b { (a, b) } else { (b, a) })
+                .entry(if a <= c { (a, c) } else { (c, a) })
                 .or_default() += 1;
         }
         for (joints, pairs) in this_frame {
             let entry = found.entry(joints.clone()).or_insert(BodyCrossing {
                 joints,
                 frames: Vec::new(),
-                most: 0,
-                total: 0,
             });
-            entry.frames.push(number);
-            entry.most = entry.most.max(pairs);
-            entry.total += pairs;
+            entry.frames.push((number, pairs));
         }
     }
     let mut list: Vec<BodyCrossing> = found.into_values().collect();
-    list.sort_by(|a, b| b.total.cmp(&a.total).then(a.joints.cmp(&b.joints)));
-    Ok(Some((character.frames.len(), list)))
+    list.sort_by(|a, b| b.total().cmp(&a.total()).then(a.joints.cmp(&b.joints)));
+    Ok(Some((baked, list)))
 }

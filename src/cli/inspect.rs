@@ -204,7 +204,9 @@ fn body_crossings(scene: &drape::scene::Scene, k: usize) -> anyhow::Result<Optio
             "its mesh passes through itself in none of the {frames} frames (pre-roll included)"
         )));
     }
-    let mut crossed: Vec<i64> = found.iter().flat_map(|c| c.frames.clone()).collect();
+    let mut crossed: Vec<i64> = (found.iter())
+        .flat_map(|c| c.frames.iter().map(|f| f.0))
+        .collect();
     crossed.sort_unstable();
     crossed.dedup();
     let listed: Vec<String> = (found.iter().take(4))
@@ -214,9 +216,9 @@ fn body_crossings(scene: &drape::scene::Scene, k: usize) -> anyhow::Result<Optio
                 c.joints.0,
                 c.joints.1,
                 c.frames.len(),
-                c.frames[0],
-                c.frames[c.frames.len() - 1],
-                c.most
+                c.frames[0].0,
+                c.frames[c.frames.len() - 1].0,
+                c.most()
             )
         })
         .collect();

@@ -42,7 +42,10 @@ pub fn modelled_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
                 None => g.positions.clone(),
             };
             let found = pairs(&rest, &g.triangles);
-            let how = "as its lattice carries it (the mesh itself does not: parts of it lie closer than the lattice spacing, and the particles that carry them make it pass through itself; a finer spacing keeps them apart)";
+            let how = match g.source {
+                Some(_) => "as its lattice carries it (the mesh itself does not: parts of it lie closer than the lattice spacing, and the particles that carry them make it pass through itself; a finer spacing keeps them apart)",
+                None => "as built",
+            };
             (found, rest, g.triangles.clone(), how)
         } else {
             let mesh = g.source.as_ref().expect("a modelled mesh");

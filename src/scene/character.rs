@@ -48,8 +48,9 @@ pub struct CharacterSpec {
     /// `settle` frames, then blends into the clip's first frame over `blend`. Default none.
     pub preroll: Option<Preroll>,
     /// Rotations added to joints in every frame of the clip, never to the bind pose: joint
-    /// name → Euler degrees X then Y then Z about the file's axes as the joint lies in the bind
-    /// pose, turning the joint and everything below it about the joint. A sim-prep layer: arms
+    /// name → Euler degrees X, Y, Z as `rotation` takes them (about X, then the turned Y, then
+    /// the turned Z), the axes the file's as the joint lies in the bind pose, turning the joint
+    /// and everything below it about the joint. A sim-prep layer: arms
     /// spread a few degrees clear of a body the clip passes them into. Default none.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub joint_offsets: BTreeMap<String, [f32; 3]>,

@@ -85,9 +85,9 @@ pub struct Asset {
     pub clips: Vec<Clip>,
     /// What the importer found suspicious but could read (repeated node names, ...).
     pub warnings: Vec<String>,
-    /// Rotations multiplied after nodes' local transforms in every pose but the bind pose:
-    /// (node, rotation in the node's own frame). Empty as read; see [`Asset::offset_joints`].
-    pub offsets: Vec<(usize, Quat)>,
+    /// Turns multiplied after nodes' local transforms in every pose but the bind pose:
+    /// (node, the turn in the node's own frame). Empty as read; see [`Asset::offset_joints`].
+    pub offsets: Vec<(usize, Mat4)>,
 }
 
 /// Index of the clip called `name` among `names`: so named exactly, else so named but for
@@ -298,7 +298,7 @@ impl Asset {
     fn posed_locals(&self, clip: Option<usize>, t: f64) -> Vec<Mat4> {
         let mut local = self.local_transforms(clip, t);
         for &(node, turn) in &self.offsets {
-            local[node] *= Mat4::from_quat(turn);
+            local[node] *= turn;
         }
         local
     }
