@@ -402,7 +402,7 @@ fn inspect_warns_of_a_garment_that_crosses_itself_as_modelled() {
 }
 
 #[test]
-fn inspect_lists_a_characters_joint_offsets() {
+fn inspect_lists_a_characters_joint_offsets_and_where_its_body_crosses_itself() {
     let dir = temp_dir();
     let scene = std::env::current_dir()
         .unwrap()
@@ -413,6 +413,26 @@ fn inspect_lists_a_characters_joint_offsets() {
     assert!(
         text.contains("joint offsets, in every posed frame but the bind pose")
             && text.contains("Skeleton_arm_joint_R (0°, 0°, -25°)"),
+        "{text}"
+    );
+    // Spread so, his mesh no longer passes through itself; cape_walk, as the clip has him,
+    // does, and the warning names the joints.
+    assert!(
+        text.contains(
+            "its mesh passes through itself in none of the 170 frames (pre-roll included)"
+        ),
+        "{text}"
+    );
+    let cape = std::env::current_dir()
+        .unwrap()
+        .join("scenes/cape_walk.json");
+    let out = drape(dir.path(), &["inspect", cape.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("warning: its mesh passes through itself in 82 of the 170 frames")
+            && text.contains(
+                "Skeleton_arm_joint_L__2_ into Skeleton_torso_joint_1 in 9 frames (1029–1037"
+            ),
         "{text}"
     );
 }
