@@ -13,6 +13,18 @@ use crate::scene::Scene;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
+/// Character `i` of `scene` (a scene with its pre-roll made part of the shot,
+/// [`Scene::with_preroll`]) as a bake loads it: its path, its import options (its pre-roll's
+/// lead-in, the garment meshes of its file left out) and its frame count (frame 0 where the
+/// bake starts, frame b + 1 shown by baked frame b).
+pub fn as_baked(scene: &Scene, i: usize) -> (PathBuf, crate::character::CharacterOptions, usize) {
+    let path = scene.character_path(i);
+    let mut options = scene.characters[i].options();
+    options.lead_in = scene.lead_in as usize;
+    options.hidden = garment_meshes_in(scene, &path);
+    (path, options, scene.frames as usize + 1)
+}
+
 /// drape's cache folder (shell caches, and the mannequin files of the embedded default scene):
 /// `$XDG_CACHE_HOME/drape`, else `~/.cache/drape`, else the temp folder.
 pub fn shell_cache_dir() -> PathBuf {
@@ -34,11 +46,7 @@ pub fn load_characters(
 ) -> Result<Vec<LoadedCharacter>> {
     let mut out = Vec::new();
     for (i, spec) in scene.characters.iter().enumerate() {
-        let path = scene.character_path(i);
-        let mut options = spec.options();
-        options.lead_in = scene.lead_in as usize;
-        options.hidden = garment_meshes_in(scene, &path);
-        let frames = scene.frames as usize + 1;
+        let (path, options, frames) = as_baked(scene, i);
         // A joint offset the file cannot take is the scene entry's, which the error names.
         let mut character =
             Character::load(&path, &options, scene.fps, frames).map_err(|e| match e {

@@ -38,11 +38,8 @@ impl BodyCrossing {
 /// frame sequence, which has no joints (refused if the scene gives it joint offsets), and for
 /// a character that does not move.
 pub fn body_crossings(scene: &Scene, k: usize) -> Result<Option<(usize, Vec<BodyCrossing>)>> {
-    let path = scene.character_path(k);
-    let mut options = scene.characters[k].options();
-    options.hidden = super::characters::garment_meshes_in(scene, &path);
-    let lead = scene.preroll_frames() as usize;
-    options.lead_in = lead;
+    let scene = scene.with_preroll();
+    let (path, options, frames) = super::characters::as_baked(&scene, k);
     if path.is_dir() || sequence_files(&path)?.len() != 1 {
         if !options.joint_offsets.is_empty() {
             // Refused as the bake refuses it.
@@ -51,9 +48,7 @@ pub fn body_crossings(scene: &Scene, k: usize) -> Result<Option<(usize, Vec<Body
         return Ok(None);
     }
     let asset = Asset::open(&path)?;
-    // As the bake loads it: frame 0 where it starts, frame b + 1 shown by baked frame b.
-    let baked = lead + scene.frames as usize;
-    let character = Character::from_asset(&asset, &path, &options, scene.fps, baked + 1)?;
+    let character = Character::from_asset(&asset, &path, &options, scene.fps, frames)?;
     if character.frames.len() < 2 {
         return Ok(None);
     }
@@ -67,8 +62,9 @@ pub fn body_crossings(scene: &Scene, k: usize) -> Result<Option<(usize, Vec<Body
     };
     let rest = SelfCrossings::new(character.frame(0), triangles);
     let mut found: BTreeMap<(String, String), BodyCrossing> = BTreeMap::new();
+    let baked = frames - 1;
     for b in 0..baked {
-        let number = scene.frame_start as i64 - lead as i64 + b as i64;
+        let number = scene.frame_start as i64 + b as i64;
         let mut this_frame: BTreeMap<(String, String), usize> = BTreeMap::new();
         for (a, c) in rest.pairs(character.frame(b + 1), triangles) {
             let (a, c) = (name(a), name(c));

@@ -32,25 +32,26 @@ pub fn count(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
 pub fn modelled_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
     let mut out = Vec::new();
     for g in garments {
-        let modelled = match &g.source {
-            Some(mesh) => pairs(&mesh.vertices, &mesh.triangles),
-            None => Vec::new(),
-        };
-        let (found, vertices, triangles, how) = if modelled.is_empty() {
-            let rest = match &g.embedding {
-                Some(e) => e.apply(&g.positions),
-                None => g.positions.clone(),
-            };
-            let found = pairs(&rest, &g.triangles);
-            let how = match g.source {
-                Some(_) => "as its lattice carries it (the mesh itself does not: parts of it lie closer than the lattice spacing, and the particles that carry them make it pass through itself; a finer spacing keeps them apart)",
-                None => "as built",
-            };
-            (found, rest, g.triangles.clone(), how)
-        } else {
-            let mesh = g.source.as_ref().expect("a modelled mesh");
-            let how = "as modelled (fix the mesh: a surface pushed out along a body's normals crosses itself where they converge)";
-            (modelled, mesh.vertices.clone(), mesh.triangles.clone(), how)
+        let modelled = (g.source.as_ref()).map(|m| (m, pairs(&m.vertices, &m.triangles)));
+        let rest;
+        let (vertices, triangles, found, how) = match modelled {
+            Some((mesh, found)) if !found.is_empty() => (
+                &mesh.vertices,
+                &mesh.triangles,
+                found,
+                "as modelled (fix the mesh: a surface pushed out along a body's normals crosses itself where they converge)",
+            ),
+            _ => {
+                rest = match &g.embedding {
+                    Some(e) => e.apply(&g.positions),
+                    None => g.positions.clone(),
+                };
+                let how = match g.source {
+                    Some(_) => "as its lattice carries it (the mesh itself does not: parts of it lie closer than the lattice spacing, and the particles that carry them make it pass through itself; a finer spacing keeps them apart)",
+                    None => "as built",
+                };
+                (&rest, &g.triangles, pairs(&rest, &g.triangles), how)
+            }
         };
         let Some(&(a, b)) = found.first() else {
             continue;
