@@ -1,5 +1,7 @@
 //! `drape bench docs --quick`: both studies in reduced form, so they cannot rot. The files they
 //! write are read back and their findings asserted on iteration counts and errors, never on time.
+//! `drape bench characters --quick` likewise: its rows are checked against their own counts and
+//! the bakes' frames against each other, never its times.
 
 mod common;
 
@@ -163,4 +165,68 @@ fn quick_studies_write_charts_tables_and_show_the_findings() {
     // The cost table names every method at every size.
     let cost = csv(&bench.join("integrators-cost.csv"));
     assert_eq!(cost.len(), 2 * 6);
+}
+
+/// `drape bench characters --quick`: H with shear springs and a cape, two rounds on one and two
+/// threads. Every bake is in the CSV; its figures per particle- and spring-iteration are its
+/// time over its own counts (H: 100 substeps × 1 iteration; the cape: 20 × 10); each scene bakes
+/// the same frames on either thread count in either round; H's ratios to itself are 1.
+#[test]
+fn the_characters_bench_times_every_bake_against_its_own_counts() {
+    let dir = common::temp_dir();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_drape"))
+        .args([
+            "bench",
+            "characters",
+            "--quick",
+            "--rounds",
+            "2",
+            "--threads",
+            "1,2",
+        ])
+        .args(["--frames", "3", "--out"])
+        .arg(dir.path().join("docs"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("XDG_CACHE_HOME", dir.path().join("cache"))
+        .output()
+        .expect("drape runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let rows = csv(&dir.path().join("docs/bench/characters.csv"));
+    assert_eq!(rows.len(), 2 * 2 * 2, "scenes × thread counts × rounds");
+    let number = |r: &BTreeMap<String, String>, k: &str| -> f64 { r[k].parse().expect(k) };
+    for r in &rows {
+        let work = number(r, "particle_iterations_per_frame");
+        let expected = if r["scene"] == "cape_walk" {
+            200.0
+        } else {
+            100.0
+        };
+        assert_eq!(work, expected, "{r:?}");
+        let ms = number(r, "ms_per_frame");
+        for (column, count) in [
+            ("ns_per_particle_iteration", "particles"),
+            ("ns_per_spring_iteration", "springs"),
+        ] {
+            let per = ms * 1e6 / (number(r, count) * work);
+            assert!(
+                (number(r, column) - per).abs() <= 1e-3 * per + 1e-3,
+                "{column}: {r:?}"
+            );
+        }
+        let same: Vec<_> = rows.iter().filter(|o| o["scene"] == r["scene"]).collect();
+        assert!(
+            same.iter().all(|o| o["frames_hash"] == r["frames_hash"]),
+            "{same:?}"
+        );
+    }
+    let h_rows: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| H with shear springs |"))
+        .collect();
+    assert_eq!(h_rows.len(), 2, "{stdout}");
+    assert!(
+        h_rows.iter().all(|l| l.matches("(1.00)").count() == 2),
+        "{stdout}"
+    );
 }

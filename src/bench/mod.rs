@@ -3,6 +3,7 @@
 //! CSV, never asserted.
 
 pub mod budget;
+pub mod characters;
 pub mod chart;
 pub mod convergence;
 pub mod integrator_report;

@@ -306,7 +306,8 @@ pub struct BenchArgs {
     /// What to time.
     #[arg(value_enum)]
     pub what: BenchWhat,
-    /// Thread counts to compare, e.g. `--threads 1,2` (default: 1 and every core).
+    /// Thread counts to compare, e.g. `--threads 1,2` (default: 1 and every core;
+    /// `characters`: every core).
     #[arg(long, value_delimiter = ',')]
     pub threads: Vec<usize>,
     /// Frames of scenes H and S to bake (default 120, as the scenes define); `budget`: frames
@@ -339,6 +340,9 @@ pub struct BenchArgs {
     /// `peers`: keep both tools' bakes (OBJ frames and Blender's jobs) in OUT/bench/peers-frames.
     #[arg(long)]
     pub keep: bool,
+    /// `characters`: interleaved rounds (every scene once per round).
+    #[arg(long, default_value_t = 3)]
+    pub rounds: u32,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -364,6 +368,11 @@ pub enum BenchWhat {
     /// CSV and SVG in docs/bench, the table in docs/accuracy-vs-speed.md (`--quick`: small
     /// scenes, a few frames).
     Peers,
+    /// Every shipped character scene against scene H with shear springs: ns per
+    /// particle-iteration and per spring-iteration, ratios within interleaved rounds
+    /// (`--rounds`), collisions and shells against the solve; CSV in docs/bench
+    /// (`--threads 1,2`: each count; `--quick`: H and a cape without its pre-roll).
+    Characters,
 }
 
 /// `X,Y,Z`: three numbers in one argument (so `--position 0,0,0.5 --out p.shell` leaves

@@ -14,6 +14,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<i32> {
         BenchWhat::Sizes => return sizes(&args),
         BenchWhat::Budget => return budget(&args),
         BenchWhat::Peers => return peers(&args),
+        BenchWhat::Characters => return characters(&args),
         BenchWhat::Convergence | BenchWhat::Integrators | BenchWhat::Docs => return studies(&args),
         BenchWhat::Solvers => {}
     }
@@ -245,5 +246,31 @@ fn peers(args: &BenchArgs) -> anyhow::Result<i32> {
         "wrote {0}/bench/peers.csv, {0}/bench/peers-mean.svg, peers-worst.svg and the table in {0}/accuracy-vs-speed.md",
         out.display()
     );
+    Ok(0)
+}
+
+/// `drape bench characters`: every character scene against H with shear springs; the CSV into
+/// `OUT/bench/characters.csv` (OUT: `docs`), the table on stdout.
+fn characters(args: &BenchArgs) -> anyhow::Result<i32> {
+    let out = args.out.clone().unwrap_or_else(|| "docs".into());
+    let mut log = |line: &str| println!("{line}");
+    let threads = match args.threads.is_empty() {
+        true => vec![rayon::current_num_threads().max(1)],
+        false => args.threads.clone(),
+    };
+    let options = drape::bench::characters::Options {
+        rounds: args.rounds,
+        threads,
+        frames: args.frames,
+        quick: args.quick,
+    };
+    let table = drape::bench::characters::run(
+        std::path::Path::new("."),
+        &out.join("bench"),
+        &options,
+        &mut log,
+    )?;
+    println!("\n{table}");
+    println!("wrote {}/bench/characters.csv", out.display());
     Ok(0)
 }
