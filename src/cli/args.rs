@@ -310,8 +310,8 @@ pub struct BenchArgs {
     /// `characters`: every core).
     #[arg(long, value_delimiter = ',')]
     pub threads: Vec<usize>,
-    /// Frames of scenes H and S to bake (default 120, as the scenes define); `budget`: frames
-    /// of every scene (default: each scene's own).
+    /// Frames of scenes H and S to bake (default 120, as the scenes define); `budget`,
+    /// `characters`: frames of every scene (default: each scene's own).
     #[arg(long)]
     pub frames: Option<u32>,
     /// Iterations to time on scene E.
@@ -324,11 +324,13 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_values_t = [100u32, 316, 1000])]
     pub sizes: Vec<u32>,
     /// `convergence`, `integrators`: folder for the CSV and SVG charts (default docs/bench);
-    /// `docs`: folder for accuracy-vs-speed.md, with the charts in its `bench/` (default docs).
+    /// `docs`: folder for accuracy-vs-speed.md, with the charts in its `bench/` (default docs);
+    /// `budget`, `peers`, `characters`: the same docs folder, their files in its `bench/`.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// `convergence`, `integrators`, `docs`: a reduced study (few iterations, small grids) that
-    /// finishes in seconds; its numbers are not the ones the docs show.
+    /// finishes in seconds; its numbers are not the ones the docs show. `characters`: H and a
+    /// cape without its pre-roll. `peers`: small scenes, a few frames.
     #[arg(long)]
     pub quick: bool,
     /// `sizes`: backends to time; `gpu` uses any adapter (software ones too).
