@@ -102,16 +102,10 @@ fn pbd_jacobi_converges_too() {
 #[test]
 fn red_black_is_bit_identical_on_one_and_two_threads() {
     let scene = reference::load(reference::SPHERE_DRAPE, "sphere_drape.json");
-    let run = |threads| {
-        thread_pool(Some(threads)).unwrap().install(|| {
-            let mut sim = Simulation::new(&scene).unwrap();
-            for _ in 0..20 {
-                sim.step_frame();
-            }
-            sim.export_positions()
-        })
-    };
-    let (one, two) = (run(1), run(2));
+    let (one, two) = (
+        positions_after(&scene, 20, 1),
+        positions_after(&scene, 20, 2),
+    );
     assert!(same_bits(&one, &two));
 }
 
@@ -131,21 +125,24 @@ fn red_black_gives_the_same_bits_on_any_team() {
         "<test>",
     )
     .expect("scene");
-    let run = |threads| {
-        thread_pool(Some(threads)).unwrap().install(|| {
-            let mut sim = Simulation::new(&scene).unwrap();
-            for _ in 0..10 {
-                sim.step_frame();
-            }
-            sim.export_positions()
-        })
-    };
+    let run = |threads| positions_after(&scene, 10, threads);
     let one = run(1);
     let start = Simulation::new(&scene).unwrap().export_positions();
     assert!(!same_bits(&one, &start), "the cloth moved");
     for threads in 2..=5 {
         assert!(same_bits(&one, &run(threads)), "{threads} threads");
     }
+}
+
+/// The positions after `frames` frames of `scene` on a pool of `threads`.
+fn positions_after(scene: &Scene, frames: u32, threads: usize) -> Vec<glam::Vec3> {
+    thread_pool(Some(threads)).unwrap().install(|| {
+        let mut sim = Simulation::new(scene).unwrap();
+        for _ in 0..frames {
+            sim.step_frame();
+        }
+        sim.export_positions()
+    })
 }
 
 /// Whether two sets of positions are the same to the bit.

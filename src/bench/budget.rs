@@ -5,9 +5,8 @@
 //! `docs/accuracy-vs-speed.md` between markers that `drape bench docs` keeps.
 
 use super::chart::{write_atomically, Chart, Series, Style};
-use crate::bake::{bake, BakeOptions, Resume};
 use crate::error::{Error, Result};
-use crate::scene::{AccuracySpec, BackendKind, GltfOutput, Scene};
+use crate::scene::{AccuracySpec, Scene};
 use std::path::Path;
 
 /// Where the table sits in `accuracy-vs-speed.md`.
@@ -134,13 +133,7 @@ fn bake_case(
     frames: Option<u32>,
     work: &Path,
 ) -> Result<Case> {
-    let mut s = scene.clone();
-    s.backend = BackendKind::Cpu;
-    s.frames = frames.unwrap_or(s.frames);
-    s.output.obj = false;
-    s.output.gltf = GltfOutput::None;
-    s.output.preview = false;
-    s.checkpoint_every = Some(0);
+    let mut s = super::report_only(scene, frames);
     if setting.accuracy.is_some() {
         s.substeps = None;
         s.timestep = None;
@@ -153,16 +146,8 @@ fn bake_case(
         s.iterations_given = true;
     }
     s.accuracy = setting.accuracy.clone();
-    let options = BakeOptions {
-        out: work.join("bake"),
-        scene_file: format!("{label} ({})", setting.name),
-        threads: None,
-        progress: crate::bake::ProgressView::Hidden,
-        shell_cache: Some(work.join("cache")),
-        resume: Resume::No,
-        until: None,
-    };
-    let r = bake(&s, &options)?.report;
+    let name = format!("{label} ({})", setting.name);
+    let r = super::bake_report(&s, name, None, work)?;
     let deepest = r
         .worst_penetrations
         .iter()

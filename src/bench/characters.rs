@@ -5,10 +5,9 @@
 //! shared machine's speed drifts between rounds more than between two bakes of one round.
 
 use super::chart::write_atomically;
-use crate::bake::{bake, BakeOptions, Resume};
 use crate::error::{Error, Result};
 use crate::report::Report;
-use crate::scene::{BackendKind, GltfOutput, Scene};
+use crate::scene::Scene;
 use std::path::Path;
 
 /// The free cloth every ratio is to: H with shear springs (the peers' model).
@@ -151,23 +150,10 @@ fn bake_one(
     frames: Option<u32>,
     work: &Path,
 ) -> Result<Timed> {
-    let mut s = scene.clone();
-    s.backend = BackendKind::Cpu;
-    s.frames = frames.unwrap_or(s.frames);
-    s.output.obj = false;
-    s.output.gltf = GltfOutput::None;
-    s.output.preview = false;
-    s.checkpoint_every = Some(0);
-    let options = BakeOptions {
-        out: work.join("bake"),
-        scene_file: format!("{label} (bench characters)"),
-        threads: Some(threads),
-        progress: crate::bake::ProgressView::Hidden,
-        shell_cache: Some(work.join("cache")),
-        resume: Resume::No,
-        until: None,
-    };
-    Ok(Timed::of(&bake(&s, &options)?.report, round, threads))
+    let s = super::report_only(scene, frames);
+    let name = format!("{label} (bench characters)");
+    let report = super::bake_report(&s, name, Some(threads), work)?;
+    Ok(Timed::of(&report, round, threads))
 }
 
 fn csv(timed: &[(String, Timed)]) -> String {

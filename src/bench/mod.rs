@@ -19,6 +19,39 @@ use crate::sim::team::Sharing;
 use crate::sim::Simulation;
 use std::time::Instant;
 
+/// `scene` as a timing bench bakes it: on the CPU, for `frames` frames (None: its own), with
+/// nothing written but the report and no checkpoints.
+pub(crate) fn report_only(scene: &Scene, frames: Option<u32>) -> Scene {
+    let mut s = scene.clone();
+    s.backend = crate::scene::BackendKind::Cpu;
+    s.frames = frames.unwrap_or(s.frames);
+    s.output.obj = false;
+    s.output.gltf = crate::scene::GltfOutput::None;
+    s.output.preview = false;
+    s.checkpoint_every = Some(0);
+    s
+}
+
+/// Bakes `scene` quietly into `work/bake` (shell caches in `work/cache`) on `threads` threads
+/// (None: every core), named `scene_file` in its report; returns the report.
+pub(crate) fn bake_report(
+    scene: &Scene,
+    scene_file: String,
+    threads: Option<usize>,
+    work: &std::path::Path,
+) -> Result<crate::report::Report> {
+    let options = crate::bake::BakeOptions {
+        out: work.join("bake"),
+        scene_file,
+        threads,
+        progress: crate::bake::ProgressView::Hidden,
+        shell_cache: Some(work.join("cache")),
+        resume: crate::bake::Resume::No,
+        until: None,
+    };
+    Ok(crate::bake::bake(scene, &options)?.report)
+}
+
 /// Every solver, in the order benches list them.
 pub const SOLVERS: [SolverKind; 4] = [
     SolverKind::Rbgs,
