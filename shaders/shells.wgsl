@@ -350,6 +350,35 @@ fn shell_resolve(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f
     return shell_finish(at, x3, acc);
 }
 
+// How shell `s` presses a garment particle at `p` of contact `radius` (ShellCollider::pressing):
+// the mean motion of the shell particles it lies within reach of, nearest first, in xyz, and
+// their mean overlap in w; w = -1 when it lies within reach of none.
+fn shell_pressing(s: u32, substep: u32, p: vec3<f32>, radius: f32) -> vec4<f32> {
+    let at = shell_at(s, substep);
+    if (at.info.count == 0u) {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    let reach = at.info.radius + radius;
+    var acc = push_out_at(p);
+    shell_gather_near(at, p, p, reach, &acc);
+    var motion = vec3<f32>(0.0);
+    var overlap = 0.0;
+    var count = 0u;
+    for (var k = 0u; k < acc.listed; k++) {
+        let q = shell_particle[at.particles + acc.near[k]];
+        let distance = length(p - q.position.xyz);
+        if (distance < reach) {
+            motion = motion + q.motion.xyz;
+            overlap = overlap + (reach - distance);
+            count = count + 1u;
+        }
+    }
+    if (count == 0u) {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    return vec4<f32>(motion / f32(count), overlap / f32(count));
+}
+
 // A collision pass's test of a garment particle against shell `s`'s particles listed at `list`
 // (ShellCollider::resolve_nearby): end point only, no listing.
 fn shell_resolve_nearby(s: u32, substep: u32, x: vec4<f32>, delta: vec4<f32>, radius: f32, list: u32) -> vec4<f32> {

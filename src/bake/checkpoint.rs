@@ -84,6 +84,9 @@ pub struct Measured {
     /// Absent in checkpoints of drape before the strain limit.
     #[serde(default)]
     pub strain_limited_per_frame: Vec<crate::report::FrameStrainLimited>,
+    /// Absent in checkpoints of drape before forced strain was counted.
+    #[serde(default)]
+    pub forced_strain_per_frame: Vec<crate::report::FrameForcedStrain>,
     pub worst_frame: Option<FrameMetrics>,
     pub last_frame: Option<FrameMetrics>,
     /// The pre-roll's report so far (absent in checkpoints of bakes without one).

@@ -204,6 +204,7 @@ fn sum_up(
     report.warnings.extend(held);
     let crossed = self_crossing_warnings(report);
     report.warnings.extend(crossed);
+    report.warnings.extend(forced_strain_warning(report));
     if let Some(limit) = sim.solver_settings().strain_limit {
         report
             .warnings
@@ -235,6 +236,7 @@ impl Measured {
             crossings_per_frame: report.crossings_per_frame.clone(),
             character_crossings_per_frame: report.character_crossings_per_frame.clone(),
             strain_limited_per_frame: report.strain_limited_per_frame.clone(),
+            forced_strain_per_frame: report.forced_strain_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
             preroll: report.preroll.clone(),
@@ -251,6 +253,7 @@ impl Measured {
         report.crossings_per_frame = self.crossings_per_frame;
         report.character_crossings_per_frame = self.character_crossings_per_frame;
         report.strain_limited_per_frame = self.strain_limited_per_frame;
+        report.forced_strain_per_frame = self.forced_strain_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
         if self.preroll.is_some() {
@@ -527,6 +530,21 @@ fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
     ))
 }
 
+/// A warning when springs from pinned or attached particles were stretched past 100 %
+/// (`forced_strain_per_frame`): the animation, not the solver, stretched them, and the bake
+/// went on.
+fn forced_strain_warning(report: &Report) -> Option<String> {
+    let frames = &report.forced_strain_per_frame;
+    let most = frames.iter().max_by(|a, b| a.strain.total_cmp(&b.strain))?;
+    Some(format!(
+        "springs from pinned or attached particles were stretched past 100 % in {} frames from frame {} (the most {:.0} %, in frame {}): the animation carries the held particles where the free ones next to them cannot follow (a body part passing through the attached edge), so no solver can keep those springs short; the bake goes on, as every spring between free particles stayed within 100 %; attach the garment elsewhere or keep the body out of the attached edge",
+        frames.len(),
+        frames[0].frame,
+        most.strain * 100.0,
+        most.frame
+    ))
+}
+
 /// A warning per character whose mesh had held garment particles inside it: they follow their
 /// targets, so the bake cannot move them out; the user can.
 fn held_inside_warnings(report: &Report) -> Vec<String> {
@@ -618,6 +636,10 @@ fn measure(
     for (w, p) in progress.worst.iter_mut().zip(&penetrations) {
         w.inside = w.inside.max(p.inside);
         w.deepest = w.deepest.max(p.deepest);
+    }
+    if error.max_strain > 1.0 && error.max_free_strain <= 1.0 {
+        let strain = error.max_strain;
+        (report.forced_strain_per_frame).push(crate::report::FrameForcedStrain { frame, strain });
     }
     preroll_strain(report, frame, error.max_strain);
     let metrics = frame_metrics(frame, &error, &penetrations, crossings);

@@ -65,6 +65,7 @@ pub(super) fn empty_report(
         worst_held_mesh_penetrations: Vec::new(),
         held_mesh_penetrations_per_frame: Vec::new(),
         strain_limited_per_frame: Vec::new(),
+        forced_strain_per_frame: Vec::new(),
         gpu_upload_bytes_per_frame: None,
         gpu_dispatches_per_frame: None,
         gpu_submissions_per_frame: None,

@@ -140,7 +140,7 @@ pub mod collider_kind {
 
 /// Constants the kernels share with the Rust code, by their WGSL name: `tests/shaders.rs`
 /// checks that every one is declared in some kernel with this value.
-pub const SHARED_CONSTANTS: [(&str, f64); 20] = [
+pub const SHARED_CONSTANTS: [(&str, f64); 21] = [
     (
         "SWEPT_PATH_CELLS",
         crate::collide::shell::SWEPT_PATH_CELLS as f64,
@@ -151,6 +151,7 @@ pub const SHARED_CONSTANTS: [(&str, f64); 20] = [
     ("NEARBY", crate::collide::shell::NEARBY as f64),
     ("SHELL_FOUND", crate::collide::shell::SHELL_FOUND as f64),
     ("PINCH", crate::collide::shell::PINCH as f64),
+    ("INTO_COLLIDER", crate::collide::INTO_COLLIDER as f64),
     ("SKIP_STEPS", crate::collide::particles::SKIP_STEPS as f64),
     ("B_END", crate::sim::model::Slot::B_END as f64),
     ("TINY_LENGTH", crate::sim::constraint::TINY_LENGTH as f64),

@@ -85,6 +85,14 @@ pub struct Report {
     /// counted once per substep it was past the limit); empty without a limit or when it was
     /// never reached.
     pub strain_limited_per_frame: Vec<FrameStrainLimited>,
+    /// The frames in which a spring from a pinned or attached particle was stretched past
+    /// 100 % while every spring between free particles stayed within it, with the most stretched
+    /// (`|l − L| / L`): the animation carried the held end through the body (a limb through the
+    /// attached edge) while the skin held the free end out. The stability rule leaves those
+    /// springs out (no solver can keep them short), so the bake goes on; a warning names the
+    /// frames. Empty when it never happened.
+    #[serde(default)]
+    pub forced_strain_per_frame: Vec<FrameForcedStrain>,
     /// Springs broken by tearing over the bake.
     pub torn_springs: usize,
     /// The characters' pre-roll, simulated before the first frame (numbered before
@@ -343,6 +351,14 @@ pub struct FrameStrainLimited {
     pub frame: u32,
     /// Springs pulled back, summed over the frame's substeps.
     pub springs: u64,
+}
+
+/// A frame in which a spring from a pinned or attached particle was stretched past 100 %.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct FrameForcedStrain {
+    pub frame: u32,
+    /// The largest strain of those springs in the frame.
+    pub strain: f64,
 }
 
 /// Penetration into one collider.

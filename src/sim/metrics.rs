@@ -23,6 +23,13 @@ pub struct ConstraintError {
     /// that structural strain does not see.
     pub mean_shear_deg: f64,
     pub max_shear_deg: f64,
+    /// Largest |l − L| / L over the structural springs between two free particles: what the
+    /// solver alone answers for, and what the stability rule reads. A spring with a pinned or
+    /// attached end has that end where the animation puts it, which can be through the body
+    /// (a limb passing through the attached edge): the skin then holds its free end out, and
+    /// no solver can keep it short.
+    #[serde(skip)]
+    pub max_free_strain: f64,
 }
 
 /// Constraint error of `positions` (storage order) over the model's structural springs that
@@ -47,6 +54,10 @@ pub fn constraint_error(model: &Model, positions: &[Vec4]) -> ConstraintError {
         e.mean_strain += strain;
         if strain > e.max_strain || strain.is_nan() {
             e.max_strain = strain;
+        }
+        let free = model.inv_mass[s.a as usize] != 0.0 && model.inv_mass[s.b as usize] != 0.0;
+        if free && (strain > e.max_free_strain || strain.is_nan()) {
+            e.max_free_strain = strain;
         }
         let stretch = err / rest;
         if stretch > e.max_stretch || stretch.is_nan() {
@@ -139,7 +150,7 @@ pub fn instability(
     if !integrating {
         return (!error.max_strain.is_finite()).then(|| NOT_FINITE.into());
     }
-    unstable_reason(true, error.max_strain, energy, initial, supplied)
+    unstable_reason(true, error.max_free_strain, energy, initial, supplied)
 }
 
 const NOT_FINITE: &str = "positions are no longer finite";
@@ -190,11 +201,15 @@ mod tests {
 
     /// A 3 × 1 rope's positions with its two springs at `first` and `second` times their rest.
     fn rope(first: f32, second: f32) -> ConstraintError {
-        let scene = crate::scene::Scene::parse(
-            r#"{ "garments": [{ "kind": "rope", "resolution": [3], "size": [0.2] }] }"#,
-            "<test>",
-        )
-        .unwrap();
+        rope_pinned(first, second, "")
+    }
+
+    /// [`rope`] with `pins` (a scene's `"pins"` field and a comma, or nothing).
+    fn rope_pinned(first: f32, second: f32, pins: &str) -> ConstraintError {
+        let text = format!(
+            r#"{{ "garments": [{{ "kind": "rope", "resolution": [3], "size": [0.2] {pins} }}] }}"#
+        );
+        let scene = crate::scene::Scene::parse(&text, "<test>").unwrap();
         let garments: Vec<Garment> = crate::garment::build_all(&scene, "<test>").unwrap();
         let model = Model::new(&garments);
         let x = [0.0, 0.1 * first, 0.1 * first + 0.1 * second];
@@ -213,5 +228,24 @@ mod tests {
         let pulled = rope(1.1, 0.95);
         assert!((pulled.max_strain - 0.1).abs() < 1e-6, "{pulled:?}");
         assert!((pulled.max_stretch - 0.1).abs() < 1e-6, "{pulled:?}");
+    }
+
+    /// A spring from a held particle stretched past 100 % counts in the strain but not in the
+    /// stability rule; one between two free particles counts in both.
+    #[test]
+    fn springs_from_held_particles_are_left_out_of_the_stability_rule() {
+        let quiet = Energy::default();
+        let unstable =
+            |e: &ConstraintError| unstable_reason(true, e.max_free_strain, &quiet, &quiet, 1.0);
+        let held = rope_pinned(2.5, 1.5, r#", "pins": [[0]]"#);
+        assert!((held.max_strain - 1.5).abs() < 1e-6, "{held:?}");
+        assert!((held.max_free_strain - 0.5).abs() < 1e-6, "{held:?}");
+        assert_eq!(unstable(&held), None);
+        let free = rope_pinned(1.5, 2.5, r#", "pins": [[0]]"#);
+        assert!((free.max_free_strain - 1.5).abs() < 1e-6, "{free:?}");
+        assert!(
+            unstable(&free).is_some_and(|r| r.contains("150 %")),
+            "{free:?}"
+        );
     }
 }

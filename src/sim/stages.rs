@@ -320,6 +320,23 @@ impl Stages<'_> {
         d
     }
 
+    /// The displacement of a particle at `x` pressed between a shell and a collider of surface
+    /// normal `n` ([`crate::collide::INTO_COLLIDER`]), from `before`, where the colliders left it:
+    /// carried along the surface by the first shell that presses it there.
+    fn pressed(&self, x: Vec4, before: Vec4, radius: f32, n: glam::Vec3) -> Vec4 {
+        let p = (x + before).truncate();
+        (self.shells.iter())
+            .find_map(|s| {
+                let (skin, squeeze) = s.pressing(p, radius)?;
+                Some(crate::collide::pressed_motion(
+                    before,
+                    n,
+                    (skin, squeeze, s.friction),
+                ))
+            })
+            .unwrap_or(before)
+    }
+
     /// The least distance of `x` from the quiet colliders less `radius` (−∞ without any).
     #[inline]
     fn clearance_of(&self, x: Vec4, radius: f32) -> f32 {
@@ -378,6 +395,7 @@ impl Stages<'_> {
                     self.clearance.get(i)
                 };
                 d = self.resolve_colliders(x, d, r, clearance);
+                let by_colliders = d;
                 let particles = model.particle_count();
                 for (k, s) in self.shells.iter().enumerate() {
                     // With collision passes, list the shell particles near i for the next ones.
@@ -393,6 +411,13 @@ impl Stages<'_> {
                         let list = self.nearby.get_mut(at);
                         d = s.resolve(x, d, r, Some(&mut *list));
                         self.listed.set(at, crate::collide::shell::listed(list));
+                    }
+                }
+                if !self.shells.is_empty() {
+                    if let Some(n) =
+                        crate::collide::pressed_into(self.colliders, x, by_colliders, d, r)
+                    {
+                        d = self.pressed(x, by_colliders, r, n);
                     }
                 }
                 b.x.set(i, x + d);

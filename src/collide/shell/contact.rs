@@ -286,6 +286,30 @@ impl ShellCollider {
         x3.min(p).cmpgt(hi).any() || x3.max(p).cmplt(lo).any()
     }
 
+    /// How the shell presses a garment particle at `p` of contact `radius`: the mean motion
+    /// over the substep of the shell particles it lies within reach of, and their mean overlap
+    /// (reach less distance) [m], taken nearest first (the same in any order of the shell's
+    /// particles); None when it lies within reach of none. A particle pressed between the skin
+    /// and a collider ([`crate::collide::pressed_into`]) is carried by this motion.
+    pub fn pressing(&self, p: Vec3, radius: f32) -> Option<(Vec3, f32)> {
+        if self.now.is_empty() {
+            return None;
+        }
+        let reach = self.radius + radius;
+        let mut nearest = Nearest::default();
+        nearest.gather(&self.now, p, reach, &Around(&self.grid, p));
+        let (mut motion, mut overlap, mut count) = (Vec3::ZERO, 0.0f32, 0u32);
+        for i in nearest.iter() {
+            let distance = (p - self.now[i]).length();
+            if distance < reach {
+                motion += self.motion[i];
+                overlap += reach - distance;
+                count += 1;
+            }
+        }
+        (count > 0).then(|| (motion / count as f32, overlap / count as f32))
+    }
+
     /// A collision pass inside the solve: [`ShellCollider::resolve`] against the shell
     /// particles in `nearby` only, end point only (no swept test).
     pub fn resolve_nearby(&self, x: Vec4, delta: Vec4, radius: f32, nearby: &Nearby) -> Vec4 {

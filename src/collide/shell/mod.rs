@@ -13,7 +13,9 @@
 //! *pinched*: pushed from both sides it would be squeezed out sideways along the skin by the
 //! overlap of the two reaches and tear its springs, so instead it is held where it was, carried
 //! by the skin's mean motion, and slips along the skin only by what the solve asks beyond
-//! friction on the squeeze.
+//! friction on the squeeze. Where the skin presses cloth against an analytic collider instead
+//! (a back on a cape on the floor), the collider keeps it off its surface and the skin carries it
+//! along ([`crate::collide::INTO_COLLIDER`], [`ShellCollider::pressing`]).
 //!
 //! With the swept test on, each garment particle's path over the substep is also traced against
 //! the shell particles *relative to their own motion*: a path that crosses the skin's tangent

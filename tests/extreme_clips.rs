@@ -1,0 +1,84 @@
+//! The robot's shipped cape (`scenes/robot_cape_run.json`) through two of its file's clips that no
+//! shipped scene uses, as a user would put them on it:
+//! - **Death**: the robot falls on its back onto the cape and lies there, held at its last pose.
+//!   The cape is pressed between its back and the floor (`collide::INTO_COLLIDER`): before such
+//!   cloth was held, the skin pushed it under the floor and out sideways in turn, and the bake
+//!   stopped as unstable at frame 1016. It bakes whole now, with no particle under the floor.
+//! - **Dance**: the robot's body passes through itself where the cape is attached, and the
+//!   attached particles go inside it while the skin holds their free neighbours out. Those
+//!   springs stretch past 100 % whatever the solver does; the bake stopped as unstable at frame
+//!   1034. The stability rule now leaves springs with a held end out: the bake goes on,
+//!   counts the frames in `forced_strain_per_frame` and warns, and every spring between free
+//!   particles stays within 100 %.
+
+use drape::bake::{bake, BakeOptions};
+use drape::report::Report;
+use std::path::Path;
+
+mod common;
+
+/// Bakes the robot's cape with `clip` (looping or holding its last pose) for `frames` frames
+/// after its pre-roll, on the CPU, without exports.
+fn cape_with(clip: &str, looping: bool, frames: u32, dir: &Path) -> Report {
+    let mut scene = drape::scene::Scene::load(Path::new("scenes/robot_cape_run.json")).unwrap();
+    scene.frames = frames;
+    scene.characters[0].clip = Some(clip.into());
+    scene.characters[0].looping = looping;
+    scene.output.obj = false;
+    scene.output.gltf = drape::scene::GltfOutput::None;
+    scene.backend = drape::scene::BackendKind::Cpu;
+    let options = BakeOptions {
+        shell_cache: Some(dir.join("cache")),
+        ..common::bake_options(&dir.join(clip))
+    };
+    bake(&scene, &options).expect("bake").report
+}
+
+#[test]
+fn the_robot_falling_on_its_cape_presses_it_onto_the_floor_and_bakes_whole() {
+    let dir = common::temp_dir();
+    let report = cape_with("Death", false, 60, dir.path());
+    assert!(report.stable, "{:?}", report.failure);
+    assert_eq!(report.frames_baked, 60);
+    // The floor (collider 0): no particle ever closer to it than its contact radius, less a
+    // rounding.
+    let floor = &report.worst_penetrations[0];
+    assert_eq!(floor.collider, 0);
+    assert!(floor.penetration.deepest < 1e-5, "{floor:?} into the floor");
+    // The cape lies under him from about frame 1018 on: pressed, not torn.
+    let worst = report.worst_frame.as_ref().unwrap();
+    assert!(worst.max_stretch < 1.0, "{worst:?}");
+    assert!(report.forced_strain_per_frame.is_empty());
+}
+
+#[test]
+fn the_robot_dancing_through_its_attached_cape_bakes_whole_and_says_where() {
+    let dir = common::temp_dir();
+    let report = cape_with("Dance", true, 45, dir.path());
+    assert!(report.stable, "{:?}", report.failure);
+    assert_eq!(report.frames_baked, 45);
+    let forced = &report.forced_strain_per_frame;
+    assert!(!forced.is_empty(), "no frame with a forced spring");
+    assert!(forced.iter().all(|f| f.strain > 1.0), "{forced:?}");
+    // The worst frame's strain is a forced spring's, past 100 %.
+    let worst = report.worst_frame.as_ref().unwrap();
+    assert!(worst.max_strain > 1.0, "{worst:?}");
+    assert!(
+        forced.iter().any(|f| f.frame == worst.frame),
+        "{forced:?} {worst:?}"
+    );
+    // Its cause is in the report: held particles inside the robot's mesh in those frames.
+    let held: Vec<u32> = (report.held_mesh_penetrations_per_frame.iter())
+        .filter(|f| f.inside.iter().any(|&n| n > 0))
+        .map(|f| f.frame)
+        .collect();
+    assert!(
+        forced.iter().all(|f| held.contains(&f.frame)),
+        "forced {forced:?}, held inside in {held:?}"
+    );
+    let warned = report.warnings.iter().any(|w| {
+        w.contains("springs from pinned or attached particles were stretched past 100 %")
+            && w.contains(&format!("from frame {}", forced[0].frame))
+    });
+    assert!(warned, "{:#?}", report.warnings);
+}
