@@ -10,6 +10,8 @@
 //!   1034. The stability rule now leaves springs with a held end out: the bake goes on,
 //!   counts the frames in `forced_strain_per_frame` and warns, and every spring between free
 //!   particles stays within 100 %.
+//! - A clip that does not loop (Death, Sitting) looped with `loop: true` jumps back to its first
+//!   pose at every loop; loading it warns, and a looping clip (Running, Walking) does not.
 
 use drape::bake::{bake, BakeOptions};
 use drape::report::Report;
@@ -81,4 +83,35 @@ fn the_robot_dancing_through_its_attached_cape_bakes_whole_and_says_where() {
             && w.contains(&format!("from frame {}", forced[0].frame))
     });
     assert!(warned, "{:#?}", report.warnings);
+}
+
+#[test]
+fn a_clip_that_does_not_loop_warns_when_looped_and_a_walk_does_not() {
+    use drape::character::{Asset, Character, CharacterOptions};
+    let path = Path::new("characters/RobotExpressive/RobotExpressive.glb");
+    let asset = Asset::open(path).unwrap();
+    let warned = |clip: &str, looping: bool| {
+        let options = CharacterOptions {
+            clip: Some(clip.into()),
+            looping,
+            scale: 0.2,
+            ..Default::default()
+        };
+        // 80 frames at 60 fps: every clip here is shorter (Death 0.958 s, Sitting 0.417 s).
+        let c = Character::from_asset(&asset, path, &options, 60.0, 80).unwrap();
+        c.warnings
+            .into_iter()
+            .find(|w| w.contains("does not end where it starts"))
+    };
+    for clip in ["Death", "Sitting"] {
+        let w = warned(clip, true).unwrap_or_else(|| panic!("{clip} looped: no warning"));
+        assert!(
+            w.contains(&format!("clip \"{clip}\"")) && w.contains("`loop: false`"),
+            "{w}"
+        );
+        assert_eq!(warned(clip, false), None, "{clip} held");
+    }
+    for clip in ["Running", "Walking", "Dance"] {
+        assert_eq!(warned(clip, true), None, "{clip}");
+    }
 }
