@@ -365,7 +365,7 @@ fn accuracy_of(
         .map(|p| p.deepest)
         .fold(0.0f32, f32::max);
     Reading {
-        strain: error.max_strain,
+        strain: error.solvable_strain(),
         depth: deepest,
         shear: error.max_shear_deg,
     }
@@ -531,13 +531,13 @@ fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
 }
 
 /// A warning when springs from pinned or attached particles were stretched past 100 %
-/// (`forced_strain_per_frame`): the animation, not the solver, stretched them, and the bake
-/// went on.
+/// (`forced_strain_per_frame`): what holds their ends, not the solver, stretched them, and
+/// those frames did not stop the bake.
 fn forced_strain_warning(report: &Report) -> Option<String> {
     let frames = &report.forced_strain_per_frame;
     let most = frames.iter().max_by(|a, b| a.strain.total_cmp(&b.strain))?;
     Some(format!(
-        "springs from pinned or attached particles were stretched past 100 % in {} frames from frame {} (the most {:.0} %, in frame {}): the animation carries the held particles where the free ones next to them cannot follow (a body part passing through the attached edge), so no solver can keep those springs short; the bake goes on, as every spring between free particles stayed within 100 %; attach the garment elsewhere or keep the body out of the attached edge",
+        "springs from pinned or attached particles were stretched past 100 % in {} frames from frame {} (the most {:.0} %, in frame {}): their held ends stay where the pins or the animation put them while something holds the free ends next to them away (a body part passing through the attached edge), so no solver can keep those springs short; every spring between free particles stayed within 100 % there, so those frames did not stop the bake; attach the garment elsewhere or keep the body out of the held edge",
         frames.len(),
         frames[0].frame,
         most.strain * 100.0,
@@ -637,7 +637,7 @@ fn measure(
         w.inside = w.inside.max(p.inside);
         w.deepest = w.deepest.max(p.deepest);
     }
-    if error.max_strain > 1.0 && error.max_free_strain <= 1.0 {
+    if sim.integrating() && error.forced() {
         let strain = error.max_strain;
         (report.forced_strain_per_frame).push(crate::report::FrameForcedStrain { frame, strain });
     }

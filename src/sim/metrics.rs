@@ -32,6 +32,24 @@ pub struct ConstraintError {
     pub max_free_strain: f64,
 }
 
+impl ConstraintError {
+    /// True when a spring from a held particle is past 100 % while every spring between free
+    /// particles is within it: strain the animation forces, which the stability rule leaves out.
+    pub fn forced(&self) -> bool {
+        self.max_strain > 1.0 && self.max_free_strain <= 1.0
+    }
+
+    /// The strain a budget can act on: the free springs' in a frame with [`Self::forced`]
+    /// strain (more iterations cannot shorten a forced spring), else the largest.
+    pub fn solvable_strain(&self) -> f64 {
+        if self.forced() {
+            self.max_free_strain
+        } else {
+            self.max_strain
+        }
+    }
+}
+
 /// Constraint error of `positions` (storage order) over the model's structural springs that
 /// the solver moves: a spring whose two ends are both pinned or attached has the length its
 /// targets give it (a waistband riding the skin stretches as the skin does), so it is left out.

@@ -322,7 +322,9 @@ impl Stages<'_> {
 
     /// The displacement of a particle at `x` pressed between a shell and a collider of surface
     /// normal `n` ([`crate::collide::INTO_COLLIDER`]), from `before`, where the colliders left it:
-    /// carried along the surface by the first shell that presses it there.
+    /// carried along the surface by the first shell (in the scene's order) in reach of it
+    /// there, which with one character is the one that pushed. None in reach (a swept test
+    /// stopped the path short of where the colliders left it): `before`, the collider's.
     fn pressed(&self, x: Vec4, before: Vec4, radius: f32, n: glam::Vec3) -> Vec4 {
         let p = (x + before).truncate();
         (self.shells.iter())

@@ -287,9 +287,9 @@ impl ShellCollider {
     }
 
     /// How the shell presses a garment particle at `p` of contact `radius`: the mean motion
-    /// over the substep of the shell particles it lies within reach of, and their mean overlap
-    /// (reach less distance) [m], taken nearest first (the same in any order of the shell's
-    /// particles); None when it lies within reach of none. A particle pressed between the skin
+    /// over the substep of the shell particles it lies within reach of (of the [`NEARBY`]
+    /// nearest), and their mean overlap (reach less distance) [m], taken nearest first (the
+    /// same in any order of the shell's particles); None when it lies within reach of none. A particle pressed between the skin
     /// and a collider ([`crate::collide::pressed_into`]) is carried by this motion.
     pub fn pressing(&self, p: Vec3, radius: f32) -> Option<(Vec3, f32)> {
         if self.now.is_empty() {
