@@ -3,7 +3,8 @@
 //! - **Death**: the robot falls on its back onto the cape and lies there, held at its last pose.
 //!   The cape is pressed between its back and the floor (`collide::INTO_COLLIDER`): before such
 //!   cloth was held, the skin pushed it under the floor and out sideways in turn, and the bake
-//!   stopped as unstable at frame 1016. It bakes whole now, with no particle under the floor.
+//!   stopped as unstable at frame 1016. It bakes whole now, with no particle under the floor;
+//!   where he lies he sinks into the floor, and the bake warns that the cape is inside him there.
 //! - **Dance**: the robot's body passes through itself where the cape is attached, and the
 //!   attached particles go inside it while the skin holds their free neighbours out. Those
 //!   springs stretch past 100 % whatever the solver does; the bake stopped as unstable at frame
@@ -22,6 +23,11 @@ mod common;
 /// Bakes the robot's cape with `clip` (looping or holding its last pose) for `frames` frames
 /// after its pre-roll, on the CPU, without exports.
 fn cape_with(clip: &str, looping: bool, frames: u32, dir: &Path) -> Report {
+    bake_cape(&cape_scene(clip, looping, frames), dir)
+}
+
+/// The robot's cape scene with `clip` for `frames` frames, on the CPU, without exports.
+fn cape_scene(clip: &str, looping: bool, frames: u32) -> drape::scene::Scene {
     let mut scene = drape::scene::Scene::load(Path::new("scenes/robot_cape_run.json")).unwrap();
     scene.frames = frames;
     scene.characters[0].clip = Some(clip.into());
@@ -29,17 +35,23 @@ fn cape_with(clip: &str, looping: bool, frames: u32, dir: &Path) -> Report {
     scene.output.obj = false;
     scene.output.gltf = drape::scene::GltfOutput::None;
     scene.backend = drape::scene::BackendKind::Cpu;
+    scene
+}
+
+fn bake_cape(scene: &drape::scene::Scene, dir: &Path) -> Report {
+    let clip = scene.characters[0].clip.clone().unwrap();
     let options = BakeOptions {
         shell_cache: Some(dir.join("cache")),
         ..common::bake_options(&dir.join(clip))
     };
-    bake(&scene, &options).expect("bake").report
+    bake(scene, &options).expect("bake").report
 }
 
 #[test]
 fn the_robot_falling_on_its_cape_presses_it_onto_the_floor_and_bakes_whole() {
     let dir = common::temp_dir();
-    let report = cape_with("Death", false, 60, dir.path());
+    let scene = cape_scene("Death", false, 60);
+    let report = bake_cape(&scene, dir.path());
     assert!(report.stable, "{:?}", report.failure);
     assert_eq!(report.frames_baked, 60);
     // The floor (collider 0): no particle's centre ever under it (before, they went 5 mm
@@ -51,6 +63,35 @@ fn the_robot_falling_on_its_cape_presses_it_onto_the_floor_and_bakes_whole() {
     let worst = report.worst_frame.as_ref().unwrap();
     assert!(worst.max_stretch < 1.0, "{worst:?}");
     assert!(report.forced_strain_per_frame.is_empty());
+    // Lying, he sinks into the floor (the clip was not made on it): the cape pressed under him
+    // is inside him there, and the bake says why.
+    let sunk = (report.character_in_colliders_per_frame.iter())
+        .map(|f| f.deepest_m[0])
+        .fold(0.0f32, f32::max);
+    assert!(sunk > 0.05, "sank {sunk} m");
+    // Each frame's depth is the lowest vertex's below the floor (y = 0), as loaded apart.
+    let baked = scene.with_preroll();
+    let (path, options, frames) = drape::bake::characters::as_baked(&baked, 0);
+    let robot = drape::character::Character::load(&path, &options, baked.fps, frames).unwrap();
+    let per_frame = &report.character_in_colliders_per_frame;
+    assert_eq!(per_frame.len(), robot.frames.len() - 1);
+    for (b, f) in per_frame.iter().enumerate() {
+        // Baked frame b shows character frame b + 1.
+        let lowest = robot.frames[b + 1]
+            .iter()
+            .map(|v| v.y)
+            .fold(f32::INFINITY, f32::min);
+        let depth = (-lowest).max(0.0);
+        assert!(
+            (f.deepest_m[0] - depth).abs() < 1e-4,
+            "frame {}: {} against {depth}",
+            f.frame,
+            f.deepest_m[0]
+        );
+    }
+    let warned = (report.warnings.iter())
+        .any(|w| w.contains("character robot: its mesh sinks into the scene's colliders"));
+    assert!(warned, "{:#?}", report.warnings);
 }
 
 #[test]

@@ -87,6 +87,9 @@ pub struct Measured {
     /// Absent in checkpoints of drape before forced strain was counted.
     #[serde(default)]
     pub forced_strain_per_frame: Vec<crate::report::FrameForcedStrain>,
+    /// Absent in checkpoints of drape before characters in colliders were measured.
+    #[serde(default)]
+    pub character_in_colliders_per_frame: Vec<crate::report::FrameCharacterDepth>,
     pub worst_frame: Option<FrameMetrics>,
     pub last_frame: Option<FrameMetrics>,
     /// The pre-roll's report so far (absent in checkpoints of bakes without one).

@@ -5,6 +5,7 @@ use super::budget::{BudgetReport, FrameBudget, Reading, Targets, CALM_FRAMES, SE
 use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics, preroll_mesh, preroll_strain};
+use super::warnings;
 use crate::backend::Backend;
 use crate::collide;
 use crate::error::Result;
@@ -113,6 +114,11 @@ pub fn run(
         let held = sim.held_positions();
         let found = mesh_penetrations([&free, &held], (meshes, &probes), baked as usize - 1);
         measure_meshes(found, !held.is_empty(), frame, report);
+        let colliders = &sim.drivers.colliders;
+        if let Some(deepest_m) = sunk_into(colliders, meshes, baked as usize - 1) {
+            (report.character_in_colliders_per_frame)
+                .push(crate::report::FrameCharacterDepth { frame, deepest_m });
+        }
         let crossings = probes.self_crossings(meshes, baked as usize - 1);
         if !crossings.is_empty() {
             (report.character_crossings_per_frame)
@@ -200,15 +206,19 @@ fn sum_up(
     report.torn_springs = sim.torn_springs();
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&progress.worst);
-    let held = held_inside_warnings(report);
+    let held = warnings::held_inside_warnings(report);
     report.warnings.extend(held);
-    let crossed = self_crossing_warnings(report);
+    let crossed = warnings::self_crossing_warnings(report);
     report.warnings.extend(crossed);
-    report.warnings.extend(forced_strain_warning(report));
+    report
+        .warnings
+        .extend(warnings::forced_strain_warning(report));
+    let sunk = warnings::sunk_warnings(report);
+    report.warnings.extend(sunk);
     if let Some(limit) = sim.solver_settings().strain_limit {
         report
             .warnings
-            .extend(strain_limited_warning(report, limit));
+            .extend(warnings::strain_limited_warning(report, limit));
     }
     if sim.residuals.is_some() {
         report.residuals = Some(progress.residuals);
@@ -237,6 +247,7 @@ impl Measured {
             character_crossings_per_frame: report.character_crossings_per_frame.clone(),
             strain_limited_per_frame: report.strain_limited_per_frame.clone(),
             forced_strain_per_frame: report.forced_strain_per_frame.clone(),
+            character_in_colliders_per_frame: report.character_in_colliders_per_frame.clone(),
             worst_frame: report.worst_frame.clone(),
             last_frame: report.last_frame.clone(),
             preroll: report.preroll.clone(),
@@ -254,6 +265,7 @@ impl Measured {
         report.character_crossings_per_frame = self.character_crossings_per_frame;
         report.strain_limited_per_frame = self.strain_limited_per_frame;
         report.forced_strain_per_frame = self.forced_strain_per_frame;
+        report.character_in_colliders_per_frame = self.character_in_colliders_per_frame;
         report.worst_frame = self.worst_frame;
         report.last_frame = self.last_frame;
         if self.preroll.is_some() {
@@ -453,6 +465,27 @@ fn mesh_penetrations<'m>(
         .collect()
 }
 
+/// How deep each character's mesh at baked frame `index` is inside `colliders` [m]: its deepest
+/// vertex's depth, 0 when none is inside; None without colliders or characters.
+fn sunk_into(
+    colliders: &[collide::Collider],
+    meshes: &BakeMeshes,
+    index: usize,
+) -> Option<Vec<f32>> {
+    if colliders.is_empty() {
+        return None;
+    }
+    let depth = |vertices: &[glam::Vec3]| {
+        (vertices.iter())
+            .map(|&v| collide::deepest(colliders, v, 0.0).0)
+            .fold(0.0f32, f32::max)
+    };
+    let deepest: Vec<f32> = (meshes.characters_at(index))
+        .map(|(_, vertices, _)| depth(vertices))
+        .collect();
+    (!deepest.is_empty()).then_some(deepest)
+}
+
 /// Records the particles inside each character's own mesh at shot frame `frame` (`found`, free
 /// and held) into `report`: the held ones apart (when there are any, `held`), since the
 /// accuracy targets answer only for the free ones.
@@ -513,102 +546,6 @@ fn record_meshes(
         w.deepest = w.deepest.max(p.deepest);
     }
     per_frame.push(this);
-}
-
-/// A warning when the strain limit pulled springs back: something dragged or squeezed the
-/// cloth farther than it stretches, and the cloth gave way to it there.
-fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
-    let frames = &report.strain_limited_per_frame;
-    let most = frames.iter().max_by_key(|f| f.springs)?;
-    Some(format!(
-        "the strain limit ({} %) pulled springs back in {} frames from frame {} (the most {} in frame {}): something drags or squeezes the cloth farther than it stretches (a body part where there is no room for it), and the cloth gives way to it there; mesh_penetrations_per_frame shows where it passes into a character",
-        limit * 100.0,
-        frames.len(),
-        frames[0].frame,
-        most.springs,
-        most.frame
-    ))
-}
-
-/// A warning when springs from pinned or attached particles were stretched past 100 %
-/// (`forced_strain_per_frame`): what holds their ends, not the solver, stretched them, and
-/// those frames did not stop the bake.
-fn forced_strain_warning(report: &Report) -> Option<String> {
-    let frames = &report.forced_strain_per_frame;
-    let most = frames.iter().max_by(|a, b| a.strain.total_cmp(&b.strain))?;
-    Some(format!(
-        "springs from pinned or attached particles were stretched past 100 % in {} frames from frame {} (the most {:.0} %, in frame {}): their held ends stay where the pins or the animation put them while something holds the free ends next to them away (a body part passing through the attached edge), so no solver can keep those springs short; every spring between free particles stayed within 100 % there, so those frames did not stop the bake; attach the garment elsewhere or keep the body out of the held edge",
-        frames.len(),
-        frames[0].frame,
-        most.strain * 100.0,
-        most.frame
-    ))
-}
-
-/// A warning per character whose mesh had held garment particles inside it: they follow their
-/// targets, so the bake cannot move them out; the user can.
-fn held_inside_warnings(report: &Report) -> Vec<String> {
-    let per_frame = &report.held_mesh_penetrations_per_frame;
-    let worst = report.worst_held_mesh_penetrations.iter().enumerate();
-    worst
-        .filter(|(_, m)| m.penetration.inside > 0)
-        .map(|(c, m)| {
-            let frames: Vec<u32> = per_frame
-                .iter()
-                .filter(|f| f.inside.get(c).is_some_and(|&n| n > 0))
-                .map(|f| f.frame)
-                .collect();
-            format!(
-                "character {}: up to {} pinned or attached garment particles inside its mesh, {:.1} mm deep at the most, in {} frames from frame {}: they follow their targets, which no budget moves; attach them farther from the skin or move the garment out",
-                m.character,
-                m.penetration.inside,
-                m.penetration.deepest * 1e3,
-                frames.len(),
-                frames.first().copied().unwrap_or_default()
-            )
-        })
-        .collect()
-}
-
-/// A warning per character whose mesh passed through itself in frames that had garment
-/// particles deeper than half its shell radius inside it (issue 30's bar): cloth caught where
-/// one part of the body sinks into another has no place outside the mesh, so those
-/// penetrations are the animation's to fix.
-fn self_crossing_warnings(report: &Report) -> Vec<String> {
-    let deep_at = |c: usize, depth: f32| -> std::collections::BTreeSet<u32> {
-        let lists = [
-            &report.mesh_penetrations_per_frame,
-            &report.held_mesh_penetrations_per_frame,
-        ];
-        (lists.into_iter().flatten())
-            .filter(|f| f.deepest_m.get(c).is_some_and(|&d| d > depth))
-            .map(|f| f.frame)
-            .collect()
-    };
-    let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
-    (names.enumerate())
-        .filter_map(|(c, name)| {
-            let crossed: Vec<(u32, usize)> = (report.character_crossings_per_frame.iter())
-                .filter_map(|f| f.crossings.get(c).map(|&n| (f.frame, n)))
-                .filter(|&(_, n)| n > 0)
-                .collect();
-            let shell = report.characters.iter().find(|r| &r.name == name)?;
-            let depth = 0.5 * shell.shell_radius;
-            let deep = deep_at(c, depth);
-            let both = crossed.iter().filter(|(f, _)| deep.contains(f)).count();
-            if both == 0 {
-                return None;
-            }
-            let &(worst, most) = crossed.iter().max_by_key(|&&(f, n)| (n, std::cmp::Reverse(f)))?;
-            Some(format!(
-                "character {name}: its mesh passes through itself in {} frames from frame {} (the most {most} pairs of its triangles, in frame {worst}), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: one part of the body sinks into another there (a hand into a thigh), and cloth caught between them has no place outside the mesh; character_crossings_per_frame lists the frames and drape inspect the joints; characters[].joint_offsets can spread the limbs clear of the body",
-                crossed.len(),
-                crossed[0].0,
-                deep.len(),
-                depth * 1e3,
-            ))
-        })
-        .collect()
 }
 
 /// Measures frame `frame` (whose garments cross themselves `crossings` times): strain,

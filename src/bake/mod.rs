@@ -4,7 +4,8 @@
 //! In three steps: [`prepare`] builds the complete simulation from the scene and its
 //! [`characters`]; [`frames`] steps and measures each frame on the scene's [`Backend`] and
 //! hands it to the [`output`]s, which write it at once (memory stays flat however long the
-//! shot); closing them makes the USD layer and the preview from the frames spooled to disk. A
+//! shot); closing them makes the USD layer and the preview from the frames spooled to disk;
+//! [`warnings`] reads the finished report for what the user can fix. A
 //! run that turns unstable stops at that frame: the frames baked so far and a report that says
 //! what happened are still moved into place, so the user can see where it went wrong.
 
@@ -19,6 +20,7 @@ pub mod prepare;
 mod report;
 pub mod resume;
 mod ticker;
+mod warnings;
 
 pub use characters::{load_characters, shell_cache_dir, LoadedCharacter};
 pub use prepare::{simulation, Prepared};

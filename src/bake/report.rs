@@ -66,6 +66,7 @@ pub(super) fn empty_report(
         held_mesh_penetrations_per_frame: Vec::new(),
         strain_limited_per_frame: Vec::new(),
         forced_strain_per_frame: Vec::new(),
+        character_in_colliders_per_frame: Vec::new(),
         gpu_upload_bytes_per_frame: None,
         gpu_dispatches_per_frame: None,
         gpu_submissions_per_frame: None,

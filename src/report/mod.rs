@@ -93,6 +93,12 @@ pub struct Report {
     /// frames. Empty when it never happened.
     #[serde(default)]
     pub forced_strain_per_frame: Vec<FrameForcedStrain>,
+    /// Every baked frame's deepest vertex of each character's mesh inside the scene's
+    /// analytic colliders [m] (0 when none is), in `worst_mesh_penetrations` order: soles
+    /// through the floor, a body lying on it. Cloth pressed between the two is kept out of the
+    /// collider, so it is inside the body there. Empty without characters or colliders.
+    #[serde(default)]
+    pub character_in_colliders_per_frame: Vec<FrameCharacterDepth>,
     /// Springs broken by tearing over the bake.
     pub torn_springs: usize,
     /// The characters' pre-roll, simulated before the first frame (numbered before
@@ -351,6 +357,14 @@ pub struct FrameStrainLimited {
     pub frame: u32,
     /// Springs pulled back, summed over the frame's substeps.
     pub springs: u64,
+}
+
+/// How deep each character's mesh is inside the scene's colliders in a frame.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct FrameCharacterDepth {
+    pub frame: u32,
+    /// Per character [m].
+    pub deepest_m: Vec<f32>,
 }
 
 /// A frame in which a spring from a pinned or attached particle was stretched past 100 %.

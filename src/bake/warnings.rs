@@ -1,0 +1,142 @@
+//! The warnings a bake adds to its report at the end, each from the report's own per-frame
+//! lists: what the bake could not fix and the user can (held particles inside a body, a body
+//! passing through itself or sinking into a collider where cloth is caught, springs the strain
+//! limit pulled back or a held end forced).
+
+use crate::report::Report;
+
+/// A warning when the strain limit pulled springs back: something dragged or squeezed the
+/// cloth farther than it stretches, and the cloth gave way to it there.
+pub(super) fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
+    let frames = &report.strain_limited_per_frame;
+    let most = frames.iter().max_by_key(|f| f.springs)?;
+    Some(format!(
+        "the strain limit ({} %) pulled springs back in {} frames from frame {} (the most {} in frame {}): something drags or squeezes the cloth farther than it stretches (a body part where there is no room for it), and the cloth gives way to it there; mesh_penetrations_per_frame shows where it passes into a character",
+        limit * 100.0,
+        frames.len(),
+        frames[0].frame,
+        most.springs,
+        most.frame
+    ))
+}
+
+/// A warning when springs from pinned or attached particles were stretched past 100 %
+/// (`forced_strain_per_frame`): what holds their ends, not the solver, stretched them, and
+/// those frames did not stop the bake.
+pub(super) fn forced_strain_warning(report: &Report) -> Option<String> {
+    let frames = &report.forced_strain_per_frame;
+    let most = frames.iter().max_by(|a, b| a.strain.total_cmp(&b.strain))?;
+    Some(format!(
+        "springs from pinned or attached particles were stretched past 100 % in {} frames from frame {} (the most {:.0} %, in frame {}): their held ends stay where the pins or the animation put them while something holds the free ends next to them away (a body part passing through the attached edge), so no solver can keep those springs short; every spring between free particles stayed within 100 % there, so those frames did not stop the bake; attach the garment elsewhere or keep the body out of the held edge",
+        frames.len(),
+        frames[0].frame,
+        most.strain * 100.0,
+        most.frame
+    ))
+}
+
+/// A warning per character whose mesh had held garment particles inside it: they follow their
+/// targets, so the bake cannot move them out; the user can.
+pub(super) fn held_inside_warnings(report: &Report) -> Vec<String> {
+    let per_frame = &report.held_mesh_penetrations_per_frame;
+    let worst = report.worst_held_mesh_penetrations.iter().enumerate();
+    worst
+        .filter(|(_, m)| m.penetration.inside > 0)
+        .map(|(c, m)| {
+            let frames: Vec<u32> = per_frame
+                .iter()
+                .filter(|f| f.inside.get(c).is_some_and(|&n| n > 0))
+                .map(|f| f.frame)
+                .collect();
+            format!(
+                "character {}: up to {} pinned or attached garment particles inside its mesh, {:.1} mm deep at the most, in {} frames from frame {}: they follow their targets, which no budget moves; attach them farther from the skin or move the garment out",
+                m.character,
+                m.penetration.inside,
+                m.penetration.deepest * 1e3,
+                frames.len(),
+                frames.first().copied().unwrap_or_default()
+            )
+        })
+        .collect()
+}
+
+/// A warning per character whose mesh passed through itself in frames that had garment
+/// particles deeper than half its shell radius inside it (issue 30's bar): cloth caught where
+/// one part of the body sinks into another has no place outside the mesh, so those
+/// penetrations are the animation's to fix.
+pub(super) fn self_crossing_warnings(report: &Report) -> Vec<String> {
+    let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
+    (names.enumerate())
+        .filter_map(|(c, name)| {
+            let crossed: Vec<(u32, usize)> = (report.character_crossings_per_frame.iter())
+                .filter_map(|f| f.crossings.get(c).map(|&n| (f.frame, n)))
+                .filter(|&(_, n)| n > 0)
+                .collect();
+            let shell = report.characters.iter().find(|r| &r.name == name)?;
+            let depth = 0.5 * shell.shell_radius;
+            let deep = deep_frames(report, c, depth);
+            let both = crossed.iter().filter(|(f, _)| deep.contains(f)).count();
+            if both == 0 {
+                return None;
+            }
+            let &(worst, most) = crossed.iter().max_by_key(|&&(f, n)| (n, std::cmp::Reverse(f)))?;
+            Some(format!(
+                "character {name}: its mesh passes through itself in {} frames from frame {} (the most {most} pairs of its triangles, in frame {worst}), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: one part of the body sinks into another there (a hand into a thigh), and cloth caught between them has no place outside the mesh; character_crossings_per_frame lists the frames and drape inspect the joints; characters[].joint_offsets can spread the limbs clear of the body",
+                crossed.len(),
+                crossed[0].0,
+                deep.len(),
+                depth * 1e3,
+            ))
+        })
+        .collect()
+}
+
+/// The frames with garment particles (free or held) more than `depth` inside character `c`'s
+/// mesh (in `worst_mesh_penetrations` order).
+fn deep_frames(report: &Report, c: usize, depth: f32) -> std::collections::BTreeSet<u32> {
+    let lists = [
+        &report.mesh_penetrations_per_frame,
+        &report.held_mesh_penetrations_per_frame,
+    ];
+    (lists.into_iter().flatten())
+        .filter(|f| f.deepest_m.get(c).is_some_and(|&d| d > depth))
+        .map(|f| f.frame)
+        .collect()
+}
+
+/// How far a character's mesh must sink into a collider before the bake counts it [m]: a
+/// millimetre, far below any cloth's thickness.
+const SUNK: f32 = 1e-3;
+
+/// A warning per character whose mesh sank into the scene's colliders (its soles through the
+/// floor, its back lying on it) in frames that had garment particles deeper than half its shell
+/// radius inside it: cloth pressed between the two is kept out of the collider
+/// (`collide::INTO_COLLIDER`), so it is inside the body there, and raising the character or
+/// lowering the collider is the user's to do.
+pub(super) fn sunk_warnings(report: &Report) -> Vec<String> {
+    let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
+    (names.enumerate())
+        .filter_map(|(c, name)| {
+            let sunk: Vec<(u32, f32)> = (report.character_in_colliders_per_frame.iter())
+                .filter_map(|f| f.deepest_m.get(c).map(|&d| (f.frame, d)))
+                .filter(|&(_, d)| d > SUNK)
+                .collect();
+            let shell = report.characters.iter().find(|r| &r.name == name)?;
+            let depth = 0.5 * shell.shell_radius;
+            let deep = deep_frames(report, c, depth);
+            let both = sunk.iter().filter(|(f, _)| deep.contains(f)).count();
+            if both == 0 {
+                return None;
+            }
+            let &(worst, most) = sunk.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
+            Some(format!(
+                "character {name}: its mesh sinks into the scene's colliders in {} frames from frame {} (up to {:.1} mm, in frame {worst}: feet through the floor, a body lying on it), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: cloth pressed between the body and a collider is kept out of the collider, so it is inside the body there; character_in_colliders_per_frame lists the frames; raise the character (characters[].position) or lower the collider",
+                sunk.len(),
+                sunk[0].0,
+                most * 1e3,
+                deep.len(),
+                depth * 1e3,
+            ))
+        })
+        .collect()
+}
