@@ -113,7 +113,8 @@ pub fn deepest(colliders: &[Collider], p: Vec3, radius: f32) -> (f32, Vec3) {
 /// When the shells, moving a particle at `x` from displacement `before` (where the colliders
 /// left it) to `after`, pushed it deeper into a collider than [`INTO_COLLIDER`] of its contact
 /// `radius`: that collider's surface normal where it now is. A move shorter than that cannot
-/// have (every distance changes no faster than the point moves), and is not tested.
+/// have (an exact distance, the plane's, sphere's and capsule's, changes no faster than the
+/// point moves; the others come close), and is not tested.
 #[inline]
 pub fn pressed_into(
     colliders: &[Collider],
