@@ -90,7 +90,7 @@ fn the_robot_falling_on_its_cape_presses_it_onto_the_floor_and_bakes_whole() {
         );
     }
     let warned = (report.warnings.iter())
-        .any(|w| w.contains("character robot: its mesh sinks into the scene's colliders"));
+        .any(|w| w.starts_with("character robot: its mesh sinks more than 5.0 mm"));
     assert!(warned, "{:#?}", report.warnings);
 }
 
@@ -127,6 +127,13 @@ fn the_robot_dancing_through_its_attached_cape_bakes_whole_and_says_where() {
             && w.contains(&format!("from frame {}", forced[0].frame))
     });
     assert!(warned, "{:#?}", report.warnings);
+    // Its feet are a few millimetres in the floor, but the particles deep inside it are caught
+    // where its body passes through itself: no warning blames the floor.
+    let floor = report
+        .warnings
+        .iter()
+        .any(|w| w.contains("into the scene's colliders"));
+    assert!(!floor, "{:#?}", report.warnings);
 }
 
 #[test]

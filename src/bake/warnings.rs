@@ -74,7 +74,7 @@ pub(super) fn self_crossing_warnings(report: &Report) -> Vec<String> {
                 .collect();
             let shell = report.characters.iter().find(|r| &r.name == name)?;
             let depth = 0.5 * shell.shell_radius;
-            let deep = deep_frames(report, c, depth);
+            let deep = deep_frames(report, c, depth, true);
             let both = crossed.iter().filter(|(f, _)| deep.contains(f)).count();
             if both == 0 {
                 return None;
@@ -91,51 +91,53 @@ pub(super) fn self_crossing_warnings(report: &Report) -> Vec<String> {
         .collect()
 }
 
-/// The frames with garment particles (free or held) more than `depth` inside character `c`'s
-/// mesh (in `worst_mesh_penetrations` order).
-fn deep_frames(report: &Report, c: usize, depth: f32) -> std::collections::BTreeSet<u32> {
-    let lists = [
-        &report.mesh_penetrations_per_frame,
-        &report.held_mesh_penetrations_per_frame,
-    ];
-    (lists.into_iter().flatten())
+/// The frames with garment particles more than `depth` inside character `c`'s mesh (in
+/// `worst_mesh_penetrations` order): free ones, and held ones too with `held`.
+fn deep_frames(
+    report: &Report,
+    c: usize,
+    depth: f32,
+    held: bool,
+) -> std::collections::BTreeSet<u32> {
+    let held = (report.held_mesh_penetrations_per_frame.iter()).filter(|_| held);
+    (report.mesh_penetrations_per_frame.iter())
+        .chain(held)
         .filter(|f| f.deepest_m.get(c).is_some_and(|&d| d > depth))
         .map(|f| f.frame)
         .collect()
 }
 
-/// How far a character's mesh must sink into a collider before the bake counts it [m]: a
-/// millimetre, far below any cloth's thickness.
-const SUNK: f32 = 1e-3;
-
-/// A warning per character whose mesh sank into the scene's colliders (its soles through the
-/// floor, its back lying on it) in frames that had garment particles deeper than half its shell
-/// radius inside it: cloth pressed between the two is kept out of the collider
+/// A warning per character whose mesh sank more than half its shell radius into the scene's
+/// colliders (its soles through the floor, its back lying on it) in frames that had free garment
+/// particles as deep inside it (cloth pressed against a collider at its contact radius can be
+/// that deep inside the body only where the body sinks about that far; RobotExpressive's dance,
+/// its feet 4 mm in the floor and its head through its shoulders, is not warned of): cloth pressed between the two is kept out of the collider
 /// (`collide::INTO_COLLIDER`), so it is inside the body there, and raising the character or
 /// lowering the collider is the user's to do.
 pub(super) fn sunk_warnings(report: &Report) -> Vec<String> {
     let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
     (names.enumerate())
         .filter_map(|(c, name)| {
-            let sunk: Vec<(u32, f32)> = (report.character_in_colliders_per_frame.iter())
-                .filter_map(|f| f.deepest_m.get(c).map(|&d| (f.frame, d)))
-                .filter(|&(_, d)| d > SUNK)
-                .collect();
             let shell = report.characters.iter().find(|r| &r.name == name)?;
             let depth = 0.5 * shell.shell_radius;
-            let deep = deep_frames(report, c, depth);
+            let sunk: Vec<(u32, f32)> = (report.character_in_colliders_per_frame.iter())
+                .filter_map(|f| f.deepest_m.get(c).map(|&d| (f.frame, d)))
+                .filter(|&(_, d)| d > depth)
+                .collect();
+            // Pressed cloth is free: held particles inside follow their targets.
+            let deep = deep_frames(report, c, depth, false);
             let both = sunk.iter().filter(|(f, _)| deep.contains(f)).count();
             if both == 0 {
                 return None;
             }
             let &(worst, most) = sunk.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
             Some(format!(
-                "character {name}: its mesh sinks into the scene's colliders in {} frames from frame {} (up to {:.1} mm, in frame {worst}: feet through the floor, a body lying on it), and {both} of the {} frames with garment particles more than {:.1} mm (half its shell radius) inside its mesh are among them: cloth pressed between the body and a collider is kept out of the collider, so it is inside the body there; character_in_colliders_per_frame lists the frames; raise the character (characters[].position) or lower the collider",
+                "character {name}: its mesh sinks more than {:.1} mm (half its shell radius) into the scene's colliders in {} frames from frame {} (up to {:.1} mm, in frame {worst}: feet through the floor, a body lying on it), and {both} of the {} frames with free garment particles as deep inside its mesh are among them: cloth pressed between the body and a collider is kept out of the collider, so it is inside the body there; character_in_colliders_per_frame lists the frames; raise the character (characters[].position) or lower the collider",
+                depth * 1e3,
                 sunk.len(),
                 sunk[0].0,
                 most * 1e3,
                 deep.len(),
-                depth * 1e3,
             ))
         })
         .collect()
