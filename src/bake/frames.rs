@@ -206,20 +206,8 @@ fn sum_up(
     report.torn_springs = sim.torn_springs();
     report.stable = report.failure.is_none();
     report.worst_penetrations = collider_penetrations(&progress.worst);
-    let held = warnings::held_inside_warnings(report);
-    report.warnings.extend(held);
-    let crossed = warnings::self_crossing_warnings(report);
-    report.warnings.extend(crossed);
-    report
-        .warnings
-        .extend(warnings::forced_strain_warning(report));
-    let sunk = warnings::sunk_warnings(report);
-    report.warnings.extend(sunk);
-    if let Some(limit) = sim.solver_settings().strain_limit {
-        report
-            .warnings
-            .extend(warnings::strain_limited_warning(report, limit));
-    }
+    let found = warnings::at_the_end(report, sim.solver_settings().strain_limit);
+    report.warnings.extend(found);
     if sim.residuals.is_some() {
         report.residuals = Some(progress.residuals);
     }

@@ -5,9 +5,21 @@
 
 use crate::report::Report;
 
+/// Every warning the finished `report` calls for, in the order a user reads them: held
+/// particles inside a body, a body through itself, forced springs, a body sunk into a collider,
+/// and the strain limit's work (with one, `strain_limit`).
+pub(super) fn at_the_end(report: &Report, strain_limit: Option<f32>) -> Vec<String> {
+    let mut found = held_inside_warnings(report);
+    found.extend(self_crossing_warnings(report));
+    found.extend(forced_strain_warning(report));
+    found.extend(sunk_warnings(report));
+    found.extend(strain_limit.and_then(|limit| strain_limited_warning(report, limit)));
+    found
+}
+
 /// A warning when the strain limit pulled springs back: something dragged or squeezed the
 /// cloth farther than it stretches, and the cloth gave way to it there.
-pub(super) fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
+fn strain_limited_warning(report: &Report, limit: f32) -> Option<String> {
     let frames = &report.strain_limited_per_frame;
     let most = frames.iter().max_by_key(|f| f.springs)?;
     Some(format!(
@@ -23,7 +35,7 @@ pub(super) fn strain_limited_warning(report: &Report, limit: f32) -> Option<Stri
 /// A warning when springs from pinned or attached particles were stretched past 100 %
 /// (`forced_strain_per_frame`): what holds their ends, not the solver, stretched them, and
 /// those frames did not stop the bake.
-pub(super) fn forced_strain_warning(report: &Report) -> Option<String> {
+fn forced_strain_warning(report: &Report) -> Option<String> {
     let frames = &report.forced_strain_per_frame;
     let most = frames.iter().max_by(|a, b| a.strain.total_cmp(&b.strain))?;
     Some(format!(
@@ -37,7 +49,7 @@ pub(super) fn forced_strain_warning(report: &Report) -> Option<String> {
 
 /// A warning per character whose mesh had held garment particles inside it: they follow their
 /// targets, so the bake cannot move them out; the user can.
-pub(super) fn held_inside_warnings(report: &Report) -> Vec<String> {
+fn held_inside_warnings(report: &Report) -> Vec<String> {
     let per_frame = &report.held_mesh_penetrations_per_frame;
     let worst = report.worst_held_mesh_penetrations.iter().enumerate();
     worst
@@ -64,7 +76,7 @@ pub(super) fn held_inside_warnings(report: &Report) -> Vec<String> {
 /// particles deeper than half its shell radius inside it (issue 30's bar): cloth caught where
 /// one part of the body sinks into another has no place outside the mesh, so those
 /// penetrations are the animation's to fix.
-pub(super) fn self_crossing_warnings(report: &Report) -> Vec<String> {
+fn self_crossing_warnings(report: &Report) -> Vec<String> {
     let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
     (names.enumerate())
         .filter_map(|(c, name)| {
@@ -114,7 +126,7 @@ fn deep_frames(
 /// its feet 4 mm in the floor and its head through its shoulders, is not warned of): cloth pressed between the two is kept out of the collider
 /// (`collide::INTO_COLLIDER`), so it is inside the body there, and raising the character or
 /// lowering the collider is the user's to do.
-pub(super) fn sunk_warnings(report: &Report) -> Vec<String> {
+fn sunk_warnings(report: &Report) -> Vec<String> {
     let names = report.worst_mesh_penetrations.iter().map(|m| &m.character);
     (names.enumerate())
         .filter_map(|(c, name)| {
