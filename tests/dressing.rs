@@ -7,7 +7,8 @@
 //! shipped robot's cape runs with no particle inside the robot, pre-roll included; the shipped
 //! skirt and top walk with no particle deeper than half a shell radius inside CesiumMan, his
 //! arms spread by `joint_offsets` where his clip passes them into his body; where it does,
-//! `bake::limbs` names the joints, and its counts add up to a bake's frame by frame.
+//! `bake::limbs` names the joints, and its counts add up to a bake's frame by frame; a top on
+//! CesiumMan at half scale, its lattice and shell left in metres, is warned of as coarse.
 
 mod common;
 
@@ -416,7 +417,61 @@ fn the_shipped_skirt_and_top_walk_with_no_particle_deeper_than_half_a_shell_radi
                 .all(|f| f.crossings[0] == 0),
             "{name}: the spread arms still cross the body"
         );
+        let stretched = report
+            .warnings
+            .iter()
+            .find(|w| w.contains("pre-roll stretched"));
+        assert!(stretched.is_none(), "{name}: {stretched:?}");
+        let preroll = report.preroll.as_ref().expect("a pre-roll");
+        assert!(
+            preroll.max_strain <= drape::bake::PREROLL_STRETCH_WARNING,
+            "{name}: {}",
+            preroll.max_strain
+        );
     }
+}
+
+#[test]
+fn a_top_on_a_half_scale_character_warns_that_its_lattice_and_shell_are_coarse() {
+    // scenes/top_walk.json with CesiumMan at half scale: the top follows him (`on`), but its
+    // 15 mm lattice and his 10 mm shell are in metres. The sleeves, modelled a few millimetres
+    // off his arms, must stretch to clear the shell: the pre-roll says so before the shot's
+    // first frame. With both halved as well, the same top dresses as at full scale.
+    let dir = common::temp_dir();
+    let path = root().join("scenes/top_walk.json");
+    let mut scene = drape::scene::Scene::load(&path).unwrap();
+    scene.frames = 1;
+    scene.characters[0].scale = 0.5;
+    let report = bake_quietly(scene.clone(), dir.path(), "coarse");
+    let preroll = report.preroll.as_ref().expect("a pre-roll");
+    assert!(
+        preroll.max_strain > drape::bake::PREROLL_STRETCH_WARNING,
+        "{}",
+        preroll.max_strain
+    );
+    let warned = (report.warnings.iter())
+        .find(|w| w.contains("pre-roll stretched"))
+        .expect("the coarse top is warned of");
+    assert!(warned.contains("before frame 1001"), "{warned}");
+    assert!(
+        warned.contains("cesium_man: 0.75 m tall, shell radius 10.0 mm"),
+        "{warned}"
+    );
+
+    scene.characters[0].radius *= 0.5;
+    scene.garments[0].spacing = scene.garments[0].spacing.map(|s| 0.5 * s);
+    let report = bake_quietly(scene, dir.path(), "scaled");
+    let preroll = report.preroll.as_ref().expect("a pre-roll");
+    assert!(
+        preroll.max_strain <= drape::bake::PREROLL_STRETCH_WARNING,
+        "{}",
+        preroll.max_strain
+    );
+    let stretched = report
+        .warnings
+        .iter()
+        .find(|w| w.contains("pre-roll stretched"));
+    assert!(stretched.is_none(), "{stretched:?}");
 }
 
 #[test]

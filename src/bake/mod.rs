@@ -27,6 +27,7 @@ pub use prepare::{simulation, Prepared};
 pub use resume::Resume;
 pub use ticker::ProgressView;
 use ticker::Ticker;
+pub use warnings::PREROLL_STRETCH_WARNING;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
