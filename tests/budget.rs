@@ -204,6 +204,7 @@ fn the_poncho_meets_its_targets_in_every_frame_with_nothing_inside_the_mannequin
     let dir = common::temp_dir();
     let mut scene = common::scene_p(dir.path(), 60);
     scene.substeps = None;
+    scene.timestep = None;
     scene.iterations_given = false;
     scene.accuracy = Some(drape::scene::AccuracySpec {
         max_strain: Some(0.10),

@@ -495,6 +495,7 @@ fn inspect_names_the_joints_of_his_arms_passing_into_his_body() {
     )
     .garments;
     scene.substeps = Some(2);
+    scene.timestep = None;
     let dir = common::temp_dir();
     let report = bake_quietly(scene, dir.path(), "out");
     assert_eq!(report.character_crossings_per_frame.len(), 170);

@@ -13,6 +13,9 @@
 //!   particles stays within 100 %.
 //! - A clip that does not loop (Death, Sitting) looped with `loop: true` jumps back to its first
 //!   pose at every loop; loading it warns, and a looping clip (Running, Walking) does not.
+//! - `scenes/poncho_walk.json` at 24 fps keeps its substep (the shipped character scenes give
+//!   `timestep`); with 20 substeps a frame, as at 60 fps, its landing stops the bake, and the
+//!   bake's warning names the substep and what to raise.
 
 use drape::bake::{bake, BakeOptions};
 use drape::report::Report;
@@ -168,4 +171,66 @@ fn a_clip_that_does_not_loop_warns_when_looped_and_a_walk_does_not() {
     for clip in ["Running", "Walking", "Dance"] {
         assert_eq!(warned(clip, true), None, "{clip}");
     }
+}
+
+/// `scenes/poncho_walk.json` at `fps` for `frames` frames, on the CPU, without exports.
+fn poncho_walk_at(fps: f32, frames: u32, dir: &Path, name: &str) -> (drape::scene::Scene, Report) {
+    let mut scene = drape::scene::Scene::load(Path::new("scenes/poncho_walk.json")).unwrap();
+    scene.fps = fps;
+    scene.frames = frames;
+    scene.output.obj = false;
+    scene.output.gltf = drape::scene::GltfOutput::None;
+    scene.backend = drape::scene::BackendKind::Cpu;
+    let options = BakeOptions {
+        shell_cache: Some(dir.join("cache")),
+        ..common::bake_options(&dir.join(name))
+    };
+    (scene.clone(), bake(&scene, &options).expect("bake").report)
+}
+
+#[test]
+fn a_shipped_scene_at_24_fps_keeps_its_substep_and_a_longer_one_is_named_when_it_stops() {
+    // The shipped character scenes give `timestep` (1/1200 s), not substeps per frame, so a
+    // scene made at 60 fps keeps its substep at a film's 24: 50 substeps a frame. The poncho
+    // lands on his head in frame 8 at 24 fps; with the 20 substeps a frame it had at 60 fps
+    // (2.08 ms each) its 5 iterations do not carry the springs' pull across it, and the bake
+    // stops there, with a warning that names the substep and what to raise.
+    let dir = common::temp_dir();
+    let (_, at_60) = poncho_walk_at(60.0, 1, dir.path(), "60");
+    assert_eq!(at_60.substeps, 20);
+    let (mut scene, report) = poncho_walk_at(24.0, 14, dir.path(), "24");
+    assert!(report.stable, "{:?}", report.failure);
+    assert_eq!(report.substeps, 50);
+    let step = 1.0 / 1200.0;
+    assert!(
+        (report.step_seconds - step).abs() < 1e-9,
+        "{}",
+        report.step_seconds
+    );
+    assert!(
+        (at_60.step_seconds - step).abs() < 1e-9,
+        "{}",
+        at_60.step_seconds
+    );
+    assert!(report.warnings.iter().all(|w| !w.contains("substeps of")));
+
+    scene.timestep = None;
+    scene.substeps = Some(20);
+    let options = BakeOptions {
+        shell_cache: Some(dir.path().join("cache")),
+        ..common::bake_options(&dir.path().join("24_long"))
+    };
+    let report = bake(&scene, &options).expect("bake").report;
+    let failure = report
+        .failure
+        .as_ref()
+        .expect("the long substeps stop the bake");
+    assert!(failure.frame <= 14, "{failure:?}");
+    let warned = (report.warnings.iter())
+        .find(|w| w.contains("substeps of"))
+        .expect("the substep is named");
+    assert!(
+        warned.contains("substeps of 2.08 ms (20 a frame at 24 fps) with 5 solver iterations"),
+        "{warned}"
+    );
 }
