@@ -42,6 +42,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
     let mut warnings =
         crate::garment::advice::folding_warnings(&garments, scene.particle_collisions);
     warnings.extend(crate::collide::crossings::modelled_warnings(&garments));
+    warnings.extend(crate::collide::crossings::between_warnings(&garments));
     if !sim.drivers.attachments.unbound().is_empty() {
         let skins = character_meshes
             .iter()

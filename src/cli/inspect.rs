@@ -51,7 +51,8 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         println!("  {line}");
     }
     let advice = drape::garment::advice::folding_warnings(&garments, scene.particle_collisions);
-    let crossed = drape::collide::crossings::modelled_warnings(&garments);
+    let mut crossed = drape::collide::crossings::modelled_warnings(&garments);
+    crossed.extend(drape::collide::crossings::between_warnings(&garments));
     for line in advice.iter().chain(&crossed) {
         println!("  warning: {line}");
     }

@@ -42,10 +42,7 @@ pub fn modelled_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
                 "as modelled (fix the mesh: a surface pushed out along a body's normals crosses itself where they converge)",
             ),
             _ => {
-                rest = match &g.embedding {
-                    Some(e) => e.apply(&g.positions),
-                    None => g.positions.clone(),
-                };
+                rest = rest_surface(g);
                 let how = match g.source {
                     Some(_) => "as its lattice carries it (the mesh itself does not: parts of it lie closer than the lattice spacing, and the particles that carry them make it pass through itself; a finer spacing keeps them apart)",
                     None => "as built",
@@ -67,6 +64,69 @@ pub fn modelled_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
             at.y,
             at.z
         ));
+    }
+    out
+}
+
+/// A garment's surface at rest where the bake starts it: its mesh as the lattice carries it,
+/// or its particles' own triangles.
+fn rest_surface(g: &crate::garment::Garment) -> Vec<Vec3> {
+    match &g.embedding {
+        Some(e) => e.apply(&g.positions),
+        None => g.positions.clone(),
+    }
+}
+
+/// A warning for each two garments whose surfaces pass through each other before any
+/// simulation (a top and a skirt modelled apart, each on the body, whose hem and waistband
+/// cross): the bake counts those pairs as crossings from its first frame, and the particle
+/// collisions keep each particle on the side of the other cloth it starts on, so nothing in
+/// the bake undoes them.
+pub fn between_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
+    let surfaces: Vec<Vec<Vec3>> = garments.iter().map(rest_surface).collect();
+    let bounds = |points: &[Vec3]| {
+        (points.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        })
+    };
+    let mut out = Vec::new();
+    for (a, first) in garments.iter().enumerate() {
+        for (b, second) in garments.iter().enumerate().skip(a + 1) {
+            let ((a_lo, a_hi), (b_lo, b_hi)) = (bounds(&surfaces[a]), bounds(&surfaces[b]));
+            if a_lo.cmpgt(b_hi).any() || b_lo.cmpgt(a_hi).any() {
+                continue;
+            }
+            let offset = surfaces[a].len() as u32;
+            let positions: Vec<Vec3> = surfaces[a].iter().chain(&surfaces[b]).copied().collect();
+            let triangles: Vec<[u32; 3]> = (first.triangles.iter().copied())
+                .chain(second.triangles.iter().map(|t| t.map(|i| i + offset)))
+                .collect();
+            let split = first.triangles.len() as u32;
+            let found: Vec<(u32, u32)> = pairs(&positions, &triangles)
+                .into_iter()
+                .filter(|&(i, j)| (i < split) != (j < split))
+                .collect();
+            let Some(&(i, j)) = found.first() else {
+                continue;
+            };
+            let centre = |t: u32| {
+                triangles[t as usize]
+                    .map(|k| positions[k as usize])
+                    .iter()
+                    .sum::<Vec3>()
+                    / 3.0
+            };
+            let at = (centre(i) + centre(j)) * 0.5;
+            out.push(format!(
+                "garments {} and {}: their surfaces pass through each other before any simulation, in {} pairs of triangles (one around ({:.3}, {:.3}, {:.3}) m); the bake counts them as crossings from the first frame, and the particle collisions keep each particle on the side of the other cloth it starts on, so nothing undoes them: model the outer garment clear of the inner one (at least two particle radii apart) where they overlap",
+                first.name,
+                second.name,
+                found.len(),
+                at.x,
+                at.y,
+                at.z
+            ));
+        }
     }
     out
 }
