@@ -167,8 +167,8 @@ fn quick_studies_write_charts_tables_and_show_the_findings() {
     assert_eq!(cost.len(), 2 * 6);
 }
 
-/// `drape bench characters --quick`: H with shear springs and a cape, two rounds on one and two
-/// threads. Every bake is in the CSV; its figures per particle- and spring-iteration are its
+/// `drape bench characters --quick`: H with shear springs, H with bend springs too (the
+/// garments' model) and a cape, two rounds on one and two threads. Every bake is in the CSV; its figures per particle- and spring-iteration are its
 /// time over its own counts (H: 100 substeps × 1 iteration; the cape: 20 × 10); each scene bakes
 /// the same frames on either thread count in either round; H's ratios to itself are 1.
 #[test]
@@ -193,7 +193,7 @@ fn the_characters_bench_times_every_bake_against_its_own_counts() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", common::stderr(&out));
     let rows = csv(&dir.path().join("docs/bench/characters.csv"));
-    assert_eq!(rows.len(), 2 * 2 * 2, "scenes × thread counts × rounds");
+    assert_eq!(rows.len(), 3 * 2 * 2, "scenes × thread counts × rounds");
     let number = |r: &BTreeMap<String, String>, k: &str| -> f64 { r[k].parse().expect(k) };
     for r in &rows {
         let work = number(r, "particle_iterations_per_frame");
@@ -227,6 +227,26 @@ fn the_characters_bench_times_every_bake_against_its_own_counts() {
     assert_eq!(h_rows.len(), 2, "{stdout}");
     assert!(
         h_rows.iter().all(|l| l.matches("(1.00)").count() == 2),
+        "{stdout}"
+    );
+    // H on the garments' model: bend springs added, so more springs per particle than H's,
+    // and its ratio to itself is 1.
+    let springs_per = |scene: &str| {
+        let r = rows.iter().find(|r| r["scene"] == scene).expect(scene);
+        number(r, "springs") / number(r, "particles")
+    };
+    assert!(
+        springs_per("H with shear and bend springs") > springs_per("H with shear springs") + 1.5
+    );
+    let bend_rows: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| H with shear and bend springs |"))
+        .collect();
+    assert_eq!(bend_rows.len(), 2, "{stdout}");
+    assert!(
+        bend_rows
+            .iter()
+            .all(|l| l.split(" | ").nth(6) == Some("1.00")),
         "{stdout}"
     );
 }

@@ -1,5 +1,6 @@
 //! `drape bench characters`: every shipped character scene against free cloth on the same model
-//! (scene H with shear springs), per particle-iteration and per spring-iteration, on each thread
+//! (scene H with shear springs, and H with the garments' bend springs too), per
+//! particle-iteration and per spring-iteration, on each thread
 //! count asked for, with each scene's stages: issue 37's benchmark as a command. Rounds are
 //! interleaved (every scene once per round) and each ratio is taken within its round, since a
 //! shared machine's speed drifts between rounds more than between two bakes of one round.
@@ -12,6 +13,15 @@ use std::path::Path;
 
 /// The free cloth every ratio is to: H with shear springs (the peers' model).
 const REFERENCE: &str = "hanging_cloth_shear.json";
+
+/// The label of H on the garments' own model: the reference with bend springs added at the
+/// shipped garments' bend stiffness ([`GARMENT_BEND`]), so it has as many springs per particle
+/// as they do (5.9 against their 5.5–6.2). Each scene's ratio to it is the cost of its
+/// character alone: collisions, self-collisions, shells and a small garment's barriers.
+const SAME_MODEL: &str = "H with shear and bend springs";
+
+/// The shipped garments' bend stiffness [N/m].
+const GARMENT_BEND: f32 = 20.0;
 
 /// The character scenes timed (besides P, the embedded default): the dressed garments, the
 /// small fast character (RobotExpressive at 0.91 m, running) and the flat-shaded CesiumMan.
@@ -92,7 +102,16 @@ impl Timed {
 /// The scenes of the bench, H first: a label and the scene.
 fn scenes(root: &Path, cache: &Path, quick: bool) -> Result<Vec<(String, Scene)>> {
     let load = |f: &str| Scene::load(&root.join("scenes").join(f));
-    let mut v = vec![("H with shear springs".to_string(), load(REFERENCE)?)];
+    let reference = load(REFERENCE)?;
+    let mut bent = reference.clone();
+    bent.name = "hanging_cloth_shear_bend".into();
+    bent.garments
+        .iter_mut()
+        .for_each(|g| g.stiffness.bend = GARMENT_BEND);
+    let mut v = vec![
+        ("H with shear springs".to_string(), reference),
+        (SAME_MODEL.to_string(), bent),
+    ];
     if quick {
         let mut cape = load("cape_walk.json")?;
         cape.characters.iter_mut().for_each(|c| c.preroll = None);
@@ -196,18 +215,15 @@ fn median(mut values: Vec<f64>) -> f64 {
 /// round and thread count.
 fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
     let mut md = String::from(
-        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | ns per spring-iteration (× H) | collisions and shells × solve | frames hash |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | ns per spring-iteration (× H) | collisions and shells × solve | frames hash |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    let reference = |round: u32, threads: usize| {
-        timed
-            .first()
-            .and_then(|(h, _)| {
-                timed
-                    .iter()
-                    .find(|(l, t)| l == h && t.round == round && t.threads == threads)
-            })
+    // The bake labelled `reference` of the same round and thread count.
+    let bake_of = |reference: &str, round: u32, threads: usize| {
+        (timed.iter())
+            .find(|(l, t)| l == reference && t.round == round && t.threads == threads)
             .map(|(_, t)| t)
     };
+    let reference = timed.first().map_or("", |(h, _)| h.as_str());
     let mut labels: Vec<&String> = Vec::new();
     for (label, _) in timed {
         if !labels.contains(&label) {
@@ -221,20 +237,22 @@ fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
                 .map(|(_, t)| t)
                 .collect();
             let Some(first) = runs.first() else { continue };
-            let ratio = |f: fn(&Timed) -> f64| {
+            let ratio_to = |to: &str, f: fn(&Timed) -> f64| {
                 median(
                     (runs.iter())
-                        .filter_map(|t| reference(t.round, n).map(|h| f(t) / f(h)))
+                        .filter_map(|t| bake_of(to, t.round, n).map(|h| f(t) / f(h)))
                         .collect(),
                 )
             };
+            let ratio = |f: fn(&Timed) -> f64| ratio_to(reference, f);
             md.push_str(&format!(
-                "| {label} | {n} | {} | {:.2} | {:.2} | {:.1} ({:.2}) | {:.2} ({:.2}) | {:.2} | {} |\n",
+                "| {label} | {n} | {} | {:.2} | {:.2} | {:.1} ({:.2}) | {:.2} | {:.2} ({:.2}) | {:.2} | {} |\n",
                 first.particles,
                 first.springs as f64 / first.particles as f64,
                 median(runs.iter().map(|t| t.ms_per_frame).collect()),
                 median(runs.iter().map(|t| t.per_particle()).collect()),
                 ratio(Timed::per_particle),
+                ratio_to(SAME_MODEL, Timed::per_particle),
                 median(runs.iter().map(|t| t.per_spring()).collect()),
                 ratio(Timed::per_spring),
                 median(runs.iter().map(|t| t.collisions / t.solve.max(1e-9)).collect()),
