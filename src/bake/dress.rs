@@ -1,7 +1,12 @@
 //! Dressing a character before the first substep: a clean start. Garment particles that begin
 //! inside a character (inside its mesh, or closer to it than its shell lets cloth come) are
 //! moved out along the surface's normal to the shell's radius, so the first substep does not
-//! fire them out of the body. The report says how many moved and how far.
+//! fire them out of the body. Then garments modelled on one character are layered in the
+//! scene's order (the first put on first): a particle of a later garment that lies under or
+//! within two contact radii of an earlier one where both cover the same skin is moved out along
+//! the skin's normal to two contact radii over it, so an outfit whose pieces were modelled
+//! apart (a top's hem through a skirt's waistband) starts with each piece on its own side. The
+//! report says how many moved and how far.
 
 use crate::collide::mesh::Surface;
 use crate::export::sequence::BakeMeshes;
@@ -14,7 +19,26 @@ use glam::Vec3;
 /// the normal at the nearest point: `radius` is the character's shell radius, `thickness /
 /// 2` the particle's contact radius. Characters are taken in turn; a particle moved out of
 /// one is then tested against the next.
-pub fn clean_start(sim: &mut Simulation, meshes: &BakeMeshes) -> CleanStart {
+pub fn clean_start(
+    sim: &mut Simulation,
+    meshes: &BakeMeshes,
+    garments: &[crate::scene::GarmentSpec],
+) -> CleanStart {
+    let mut report = out_of_bodies(sim, meshes);
+    for (name, vertices, triangles) in meshes.characters_on(0) {
+        let on: Vec<usize> = (garments.iter().enumerate())
+            .filter(|(_, g)| g.on.as_deref() == Some(name))
+            .map(|(k, _)| k)
+            .collect();
+        if on.len() > 1 {
+            layer(sim, &Surface::new(vertices, triangles), &on, &mut report);
+        }
+    }
+    report
+}
+
+/// The first part of [`clean_start`]: every free particle out of every character.
+fn out_of_bodies(sim: &mut Simulation, meshes: &BakeMeshes) -> CleanStart {
     let mut report = CleanStart::default();
     let free: Vec<usize> = (0..sim.state.positions.len())
         .filter(|&i| sim.model().inv_mass[i] != 0.0)
@@ -49,6 +73,115 @@ pub fn clean_start(sim: &mut Simulation, meshes: &BakeMeshes) -> CleanStart {
         }
     }
     report
+}
+
+/// A garment particle placed against the skin for [`layer`]: its storage index, whether it is
+/// held, its contact radius, its distance out of the skin, the nearest skin point and the skin's normal
+/// there.
+struct OnSkin {
+    index: usize,
+    /// Pinned or attached: it covers the skin for later garments but is not moved.
+    held: bool,
+    radius: f32,
+    distance: f32,
+    point: Vec3,
+    normal: Vec3,
+}
+
+/// Lays the garments `on` (model garment indices, in the scene's order, all modelled on the
+/// character whose skin is `surface`) each over the ones before it: a particle of a later
+/// garment is moved out along the skin's normal to two contact radii over the farthest
+/// particle of an earlier garment that covers the same skin (its nearest skin point within
+/// two contact diameters of the particle's, the normals within 60°), when it lies lower.
+fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut CleanStart) {
+    let model = sim.model();
+    let placed: Vec<Vec<OnSkin>> = on
+        .iter()
+        .map(|&g| {
+            let range = model.garments[g].export.clone();
+            let all: Vec<usize> = range.map(|e| model.storage_of[e] as usize).collect();
+            let points: Vec<Vec3> = (all.iter())
+                .map(|&i| sim.state.positions[i].truncate())
+                .collect();
+            (all.iter().zip(surface.nearest_signed(&points)))
+                .map(|(&index, n)| OnSkin {
+                    index,
+                    held: model.inv_mass[index] == 0.0,
+                    radius: model.contact_radius[index],
+                    distance: n.distance,
+                    point: n.point,
+                    normal: n.normal,
+                })
+                .collect()
+        })
+        .collect();
+    let radius = |p: &OnSkin| p.radius;
+    let mut placed = placed;
+    for outer in 1..placed.len() {
+        let (under, rest) = placed.split_at_mut(outer);
+        let covering: Vec<&OnSkin> = under.iter().flatten().collect();
+        let reach = 4.0
+            * (covering.iter().map(|p| radius(p)))
+                .fold(0.0f32, f32::max)
+                .max(rest[0].iter().map(radius).fold(0.0f32, f32::max));
+        if reach <= 0.0 {
+            continue;
+        }
+        let grid = SkinGrid::new(covering.iter().map(|p| p.point), reach);
+        for p in rest[0].iter_mut().filter(|p| !p.held) {
+            let mut over = f32::NEG_INFINITY;
+            grid.near(p.point, |k| {
+                let q = covering[k];
+                if q.point.distance(p.point) <= reach && q.normal.dot(p.normal) > 0.5 {
+                    over = over.max(q.distance + radius(q) + radius(p));
+                }
+            });
+            if over > p.distance {
+                let to = p.point + p.normal * over;
+                let x = &mut sim.state.positions[p.index];
+                let moved = x.truncate().distance(to);
+                *x = to.extend(0.0);
+                sim.state.velocities[p.index] = glam::Vec4::ZERO;
+                p.distance = over;
+                report.layered += 1;
+                report.largest_layering_m = report.largest_layering_m.max(moved);
+            }
+        }
+    }
+}
+
+/// Points bucketed by cell (a hash map of cells `cell` wide): the points within `cell` of a
+/// point are in the 27 cells around its own.
+struct SkinGrid {
+    cell: f32,
+    cells: std::collections::HashMap<glam::IVec3, Vec<usize>>,
+}
+
+impl SkinGrid {
+    fn new(points: impl Iterator<Item = Vec3>, cell: f32) -> SkinGrid {
+        let mut cells: std::collections::HashMap<glam::IVec3, Vec<usize>> = Default::default();
+        for (k, p) in points.enumerate() {
+            cells
+                .entry((p / cell).floor().as_ivec3())
+                .or_default()
+                .push(k);
+        }
+        SkinGrid { cell, cells }
+    }
+
+    /// Calls `each` with every point in the 27 cells around `p`'s, in ascending order per cell.
+    fn near(&self, p: Vec3, mut each: impl FnMut(usize)) {
+        let c = (p / self.cell).floor().as_ivec3();
+        for x in -1..=1 {
+            for y in -1..=1 {
+                for z in -1..=1 {
+                    if let Some(points) = self.cells.get(&(c + glam::IVec3::new(x, y, z))) {
+                        points.iter().for_each(|&k| each(k));
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// How far a garment starts from the body it was modelled on ([`clearance`]).

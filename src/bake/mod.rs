@@ -276,7 +276,7 @@ fn run(
         &mut warnings,
     )?;
     if source.is_none() && !sim.drivers.shells.is_empty() {
-        report.clean_start = Some(dress::clean_start(&mut sim, &meshes));
+        report.clean_start = Some(dress::clean_start(&mut sim, &meshes, &scene.garments));
     }
     let targets = budget::Targets::of(scene);
     if let Some(t) = &targets {

@@ -87,6 +87,13 @@ fn print_summary(r: &drape::report::Report, out: &std::path::Path) {
             c.largest_move_m * 1e3
         );
     }
+    if let Some(c) = r.clean_start.as_ref().filter(|c| c.layered > 0) {
+        println!(
+            "clean start: {} garment particles moved out over a garment put on before theirs (garments on one character layered in the scene's order), {:.1} mm at the most",
+            c.layered,
+            c.largest_layering_m * 1e3
+        );
+    }
     for e in &r.exports {
         println!(
             "wrote {}: {} files, {:.1} MB in {:.0} ms",

@@ -79,9 +79,10 @@ fn rest_surface(g: &crate::garment::Garment) -> Vec<Vec3> {
 
 /// A warning for each two garments whose surfaces pass through each other before any
 /// simulation (a top and a skirt modelled apart, each on the body, whose hem and waistband
-/// cross): the bake counts those pairs as crossings from its first frame, and the particle
-/// collisions keep each particle on the side of the other cloth it starts on, so nothing in
-/// the bake undoes them.
+/// cross): the particle collisions keep each particle on the side of the other cloth it starts
+/// on, so only the clean start can undo them, and it does only for garments modelled on one
+/// character (it lays each over the ones before it in the scene's order,
+/// `bake::dress::clean_start`).
 pub fn between_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
     let surfaces: Vec<Vec<Vec3>> = garments.iter().map(rest_surface).collect();
     let bounds = |points: &[Vec3]| {
@@ -118,7 +119,7 @@ pub fn between_warnings(garments: &[crate::garment::Garment]) -> Vec<String> {
             };
             let at = (centre(i) + centre(j)) * 0.5;
             out.push(format!(
-                "garments {} and {}: their surfaces pass through each other before any simulation, in {} pairs of triangles (one around ({:.3}, {:.3}, {:.3}) m); the bake counts them as crossings from the first frame, and the particle collisions keep each particle on the side of the other cloth it starts on, so nothing undoes them: model the outer garment clear of the inner one (at least two particle radii apart) where they overlap",
+                "garments {} and {}: their surfaces pass through each other before any simulation, in {} pairs of triangles (one around ({:.3}, {:.3}, {:.3}) m); the particle collisions keep each particle on the side of the other cloth it starts on, so only the clean start undoes it: for garments modelled on one character (`on`) it moves the later one's particles out over the earlier one (the scene's order is the order they are put on), elsewhere nothing does; model the outer garment clear of the inner one (two particle radii apart) where they overlap, or list the inner one first",
                 first.name,
                 second.name,
                 found.len(),

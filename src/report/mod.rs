@@ -167,6 +167,11 @@ pub struct CleanStart {
     pub inside_mesh: usize,
     /// The largest move [m].
     pub largest_move_m: f32,
+    /// Particles then moved out over a garment put on before theirs (garments on one
+    /// character, layered in the scene's order).
+    pub layered: usize,
+    /// The largest of those moves [m].
+    pub largest_layering_m: f32,
 }
 
 /// A bake stopped by a signal.
