@@ -18,7 +18,8 @@ use glam::Vec3;
 /// its frame 0, where the bake starts) to `radius + thickness / 2` outside its surface, along
 /// the normal at the nearest point: `radius` is the character's shell radius, `thickness /
 /// 2` the particle's contact radius. Characters are taken in turn; a particle moved out of
-/// one is then tested against the next.
+/// one is then tested against the next. Then the garments of `garments` (the scene's, in its
+/// order) modelled on one character are laid each over the ones before it ([`layer`]).
 pub fn clean_start(
     sim: &mut Simulation,
     meshes: &BakeMeshes,
@@ -76,8 +77,8 @@ fn out_of_bodies(sim: &mut Simulation, meshes: &BakeMeshes) -> CleanStart {
 }
 
 /// A garment particle placed against the skin for [`layer`]: its storage index, whether it is
-/// held, its contact radius, its distance out of the skin, the nearest skin point and the skin's normal
-/// there.
+/// held, its contact radius, its distance out of the skin, the nearest skin point and the
+/// skin's normal there.
 struct OnSkin {
     index: usize,
     /// Pinned or attached: it covers the skin for later garments but is not moved.
@@ -95,7 +96,7 @@ struct OnSkin {
 /// two contact diameters of the particle's, the normals within 60°), when it lies lower.
 fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut CleanStart) {
     let model = sim.model();
-    let placed: Vec<Vec<OnSkin>> = on
+    let mut placed: Vec<Vec<OnSkin>> = on
         .iter()
         .map(|&g| {
             let range = model.garments[g].export.clone();
@@ -116,7 +117,6 @@ fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut Cle
         })
         .collect();
     let radius = |p: &OnSkin| p.radius;
-    let mut placed = placed;
     for outer in 1..placed.len() {
         let (under, rest) = placed.split_at_mut(outer);
         let covering: Vec<&OnSkin> = under.iter().flatten().collect();
