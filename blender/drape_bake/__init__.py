@@ -35,11 +35,14 @@ import threading
 
 import bpy
 
-# Solver settings per preset: substeps and iterations fixed, or accuracy targets with which
-# drape chooses them frame by frame (docs/scene-format.md, `accuracy`).
+# Solver settings per preset: the substep's length and the iterations fixed, or accuracy
+# targets with which drape chooses them frame by frame (docs/scene-format.md, `accuracy`). The
+# substep is given in seconds (`timestep`), not per frame, so a preset is the same simulation
+# at Blender's 24 fps as at 60: 20 substeps a frame at 24 fps are 2.5 times as long as at 60,
+# and a poncho landing on a head stops the bake there (docs/benchmarks.md, "Frame rates").
 PRESETS = {
-    "DRAFT": {"substeps": 10, "solver": {"kind": "rbgs", "iterations": 5, "contact_passes": 2}},
-    "STANDARD": {"substeps": 20, "solver": {"kind": "rbgs", "iterations": 10, "contact_passes": 5}},
+    "DRAFT": {"timestep": 1 / 600, "solver": {"kind": "rbgs", "iterations": 5, "contact_passes": 2}},
+    "STANDARD": {"timestep": 1 / 1200, "solver": {"kind": "rbgs", "iterations": 10, "contact_passes": 5}},
     "ACCURATE": {
         "solver": {"kind": "rbgs", "contact_passes": 5},
         "accuracy": {"max_strain": 0.05, "max_penetration": 0.005},
@@ -465,8 +468,8 @@ class DrapeSettings(bpy.types.PropertyGroup):
     preset: bpy.props.EnumProperty(
         name="Accuracy",
         items=[
-            ("DRAFT", "Draft", "10 substeps of 5 iterations per frame"),
-            ("STANDARD", "Standard", "20 substeps of 10 iterations per frame"),
+            ("DRAFT", "Draft", "substeps of 1/600 s (10 a frame at 60 fps, 25 at 24) of 5 iterations"),
+            ("STANDARD", "Standard", "substeps of 1/1200 s (20 a frame at 60 fps, 50 at 24) of 10 iterations"),
             ("ACCURATE", "Accurate", "drape chooses the budget per frame: strain under 5 %, penetration under 5 mm (CPU)"),
         ],
         default="STANDARD",
