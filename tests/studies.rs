@@ -220,11 +220,14 @@ fn the_characters_bench_times_every_bake_against_its_own_counts() {
             "{same:?}"
         );
     }
-    let h_rows: Vec<&str> = stdout
-        .lines()
-        .filter(|l| l.starts_with("| H with shear springs |"))
-        .collect();
-    assert_eq!(h_rows.len(), 2, "{stdout}");
+    // The table's rows of one reference, one per thread count.
+    let rows_of = |label: &str| -> Vec<&str> {
+        let start = format!("| {label} |");
+        let found: Vec<&str> = stdout.lines().filter(|l| l.starts_with(&start)).collect();
+        assert_eq!(found.len(), 2, "{label}: {stdout}");
+        found
+    };
+    let h_rows = rows_of("H with shear springs");
     assert!(
         h_rows.iter().all(|l| l.matches("(1.00)").count() == 2),
         "{stdout}"
@@ -238,13 +241,8 @@ fn the_characters_bench_times_every_bake_against_its_own_counts() {
     assert!(
         springs_per("H with shear and bend springs") > springs_per("H with shear springs") + 1.5
     );
-    let bend_rows: Vec<&str> = stdout
-        .lines()
-        .filter(|l| l.starts_with("| H with shear and bend springs |"))
-        .collect();
-    assert_eq!(bend_rows.len(), 2, "{stdout}");
     assert!(
-        bend_rows
+        rows_of("H with shear and bend springs")
             .iter()
             .all(|l| l.split(" | ").nth(6) == Some("1.00")),
         "{stdout}"

@@ -116,14 +116,13 @@ fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut Cle
                 .collect()
         })
         .collect();
-    let radius = |p: &OnSkin| p.radius;
     for outer in 1..placed.len() {
         let (under, rest) = placed.split_at_mut(outer);
         let covering: Vec<&OnSkin> = under.iter().flatten().collect();
         let reach = 4.0
-            * (covering.iter().map(|p| radius(p)))
-                .fold(0.0f32, f32::max)
-                .max(rest[0].iter().map(radius).fold(0.0f32, f32::max));
+            * (covering.iter().map(|p| p.radius))
+                .chain(rest[0].iter().map(|p| p.radius))
+                .fold(0.0f32, f32::max);
         if reach <= 0.0 {
             continue;
         }
@@ -133,7 +132,7 @@ fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut Cle
             grid.near(p.point, |k| {
                 let q = covering[k];
                 if q.point.distance(p.point) <= reach && q.normal.dot(p.normal) > 0.5 {
-                    over = over.max(q.distance + radius(q) + radius(p));
+                    over = over.max(q.distance + q.radius + p.radius);
                 }
             });
             if over > p.distance {
