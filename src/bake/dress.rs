@@ -2,11 +2,11 @@
 //! inside a character (inside its mesh, or closer to it than its shell lets cloth come) are
 //! moved out along the surface's normal to the shell's radius, so the first substep does not
 //! fire them out of the body. Then garments modelled on one character are layered in the
-//! scene's order (the first put on first): a particle of a later garment that lies under or
-//! within two contact radii of an earlier one where both cover the same skin is moved out along
-//! the skin's normal to two contact radii over it, so an outfit whose pieces were modelled
-//! apart (a top's hem through a skirt's waistband) starts with each piece on its own side. The
-//! report says how many moved and how far.
+//! scene's order (the first put on first): where a particle of a later garment lies under or
+//! within two contact radii of an earlier one over the same skin, the later garment rises along
+//! the skin's normal as a sheet until it lies two contact radii over it, so an outfit whose
+//! pieces were modelled apart (a top's hem through a skirt's waistband) starts with each piece
+//! on its own side. The report says how many moved and how far.
 
 use crate::collide::mesh::Surface;
 use crate::export::sequence::BakeMeshes;
@@ -91,9 +91,10 @@ struct OnSkin {
 
 /// Lays the garments `on` (model garment indices, in the scene's order, all modelled on the
 /// character whose skin is `surface`) each over the ones before it: a particle of a later
-/// garment is moved out along the skin's normal to two contact radii over the farthest
+/// garment needs to rise along the skin's normal to two contact radii over the farthest
 /// particle of an earlier garment that covers the same skin (its nearest skin point within
-/// two contact diameters of the particle's, the normals within 60°), when it lies lower.
+/// two contact diameters of the particle's, the normals within 60°), when it lies lower, and
+/// the garment rises by [`lifts`].
 fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut CleanStart) {
     let model = sim.model();
     let mut placed: Vec<Vec<OnSkin>> = on
@@ -127,27 +128,66 @@ fn layer(sim: &mut Simulation, surface: &Surface, on: &[usize], report: &mut Cle
             continue;
         }
         let grid = SkinGrid::new(covering.iter().map(|p| p.point), reach);
-        for p in rest[0].iter_mut().filter(|p| !p.held) {
-            let mut over = f32::NEG_INFINITY;
-            grid.near(p.point, |k| {
-                let q = covering[k];
-                if q.point.distance(p.point) <= reach && q.normal.dot(p.normal) > 0.5 {
-                    over = over.max(q.distance + q.radius + p.radius);
+        // How far each free particle must rise to lie over the garments put on before.
+        let needed: Vec<f32> = (rest[0].iter())
+            .map(|p| {
+                let mut over = f32::NEG_INFINITY;
+                grid.near(p.point, |k| {
+                    let q = covering[k];
+                    if q.point.distance(p.point) <= reach && q.normal.dot(p.normal) > 0.5 {
+                        over = over.max(q.distance + q.radius + p.radius);
+                    }
+                });
+                match p.held {
+                    true => 0.0,
+                    false => (over - p.distance).max(0.0),
                 }
-            });
-            if over > p.distance {
-                let to = p.point + p.normal * over;
-                let x = &mut sim.state.positions[p.index];
-                let moved = x.truncate().distance(to);
-                *x = to.extend(0.0);
-                sim.state.velocities[p.index] = glam::Vec4::ZERO;
-                p.distance = over;
-                report.layered += 1;
-                report.largest_layering_m = report.largest_layering_m.max(moved);
-            }
+            })
+            .collect();
+        let most = needed.iter().copied().fold(0.0f32, f32::max);
+        if most <= 0.0 {
+            continue;
+        }
+        let lifts = lifts(&rest[0], &needed, most);
+        for (p, lift) in rest[0]
+            .iter_mut()
+            .zip(lifts)
+            .filter(|(p, l)| !p.held && *l > 0.0)
+        {
+            let x = &mut sim.state.positions[p.index];
+            *x += (p.normal * lift).extend(0.0);
+            sim.state.velocities[p.index] = glam::Vec4::ZERO;
+            p.distance += lift;
+            report.layered += 1;
+            report.largest_layering_m = report.largest_layering_m.max(lift);
         }
     }
 }
+
+/// How far [`layer`] lifts each particle of a garment (`placed`) whose particles need to rise
+/// `needed` (the most of them `most`): the garment rises as a sheet, each particle by the most
+/// any particle facing its way needs less [`LIFT_SLOPE`] times their distance along the skin.
+/// So the layers of its lattice over one patch of skin rise together (a particle that alone
+/// rose to where the garment before it lets it would flatten the lattice's thickness there),
+/// and the lift fades around the overlap instead of stepping.
+fn lifts(placed: &[OnSkin], needed: &[f32], most: f32) -> Vec<f32> {
+    let grid = SkinGrid::new(placed.iter().map(|p| p.point), most / LIFT_SLOPE);
+    (placed.iter())
+        .map(|p| {
+            let mut lift = 0.0f32;
+            grid.near(p.point, |j| {
+                let q = &placed[j];
+                if needed[j] > 0.0 && q.normal.dot(p.normal) > 0.5 {
+                    lift = lift.max(needed[j] - LIFT_SLOPE * q.point.distance(p.point));
+                }
+            });
+            lift
+        })
+        .collect()
+}
+
+/// How fast [`layer`]'s lift fades along the skin around the particles that need it: 1 in 2.
+const LIFT_SLOPE: f32 = 0.5;
 
 /// Points bucketed by cell (a hash map of cells `cell` wide): the points within `cell` of a
 /// point are in the 27 cells around its own.
@@ -221,5 +261,45 @@ pub fn clearance(
         },
         inside: distances.iter().filter(|&&d| d < 0.0).count(),
         within: distances.iter().filter(|&&d| d < radius).count(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn on_skin(x: f32, distance: f32) -> OnSkin {
+        OnSkin {
+            index: 0,
+            held: false,
+            radius: 0.005,
+            distance,
+            point: Vec3::new(x, 0.0, 0.0),
+            normal: Vec3::Y,
+        }
+    }
+
+    #[test]
+    fn a_lattice_rises_as_a_sheet_its_layers_together_and_fading_around_the_overlap() {
+        // Two layers of a lattice over the skin at x = 0 (5 mm and 20 mm out), the inner one
+        // 30 mm under where the garment before it lets it lie; neighbours along the skin 2 cm
+        // and 10 cm away, and one facing the other way (the far side of a limb) at x = 0.
+        let mut placed = vec![
+            on_skin(0.0, 0.005),
+            on_skin(0.0, 0.020),
+            on_skin(0.02, 0.005),
+            on_skin(0.10, 0.005),
+            on_skin(0.0, 0.005),
+        ];
+        placed[4].normal = -Vec3::Y;
+        let needed = [0.03, 0.0, 0.0, 0.0, 0.0];
+        let lifts = lifts(&placed, &needed, 0.03);
+        // Both layers by the same 30 mm: the lattice keeps its 15 mm thickness.
+        assert_eq!(lifts[0], 0.03);
+        assert_eq!(lifts[1], 0.03);
+        // 2 cm along the skin, half that less; 10 cm away, beyond the fade; facing away, none.
+        assert!((lifts[2] - 0.02).abs() < 1e-6, "{lifts:?}");
+        assert_eq!(lifts[3], 0.0);
+        assert_eq!(lifts[4], 0.0);
     }
 }
