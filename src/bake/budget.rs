@@ -3,7 +3,17 @@
 //! misses a target is simulated again from its start state at the next level of [`LADDER`],
 //! a frame that comes within a quarter of a target raises the level for the next frame, and
 //! after [`CALM_FRAMES`] frames in a row that met both targets with half the margin to
-//! spare, the next frame tries one level lower. Substeps and iterations the scene gives itself
+//! spare, the next frame tries one level lower. A frame that misses even at the cap may miss for
+//! reasons no budget reaches (cloth pressed between body parts, a pose that forces it), and the
+//! cap costs 16 times the cheapest level: after [`CALM_FRAMES`] such frames in a row the budget
+//! descends, a window of [`CALM_FRAMES`] frames a level, while each window misses the targets
+//! by no more than the one above it (by less than [`FUTILE_SHARE`] of that window's margin:
+//! [`Targets::excess`]); the frames of a descent are kept when they miss (the report marks them
+//! `kept_missing`). A window that misses by more sends the budget back up one level, where
+//! misses are kept for [`HOLD_FRAMES`] frames before raising is tried again. Windows, not one
+//! frame simulated at two budgets, since a frame starts from the state the frames before it
+//! left: simulated again at a larger budget, a frame whose cloth a cheap budget let tangle is
+//! no better, whatever the budget could have done from the start. Substeps and iterations the scene gives itself
 //! stay fixed (the ladder moves only what it leaves out); collision passes follow the iterations
 //! when the scene has them on. Every decision depends only on the frames, so a bake gives the
 //! same frames every time.
@@ -29,6 +39,17 @@ pub const LADDER: [(u32, u32); 8] = [
 /// Frames in a row with a large margin after which a lower budget is tried.
 pub const CALM_FRAMES: u32 = 10;
 
+/// How much more a window of frames one level lower may miss the targets by, as a share of the
+/// margin the window above missed them by ([`Targets::excess`] less 1, in the mean), for the
+/// budget to go on descending: a quarter. `top_walk` at a 10 % strain target misses in most
+/// frames at any level from 10 × 5 up (its median frame: 20 % at 10 × 5, 12 % at 20 × 10, 16 %
+/// at 80 × 20), while a frame of the solver's making misses by about half as much a level up.
+pub const FUTILE_SHARE: f64 = 0.25;
+
+/// Frames whose misses keep their budget after a descent found the level below missing by
+/// more: half a second at 60 fps, then a miss raises again.
+pub const HOLD_FRAMES: u32 = 30;
+
 /// Frames after a raise whose kinetic energy is capped ([`Simulation::settle_frame`]): the
 /// springs a cheaper budget left stretched shorten over about two frames at the next budget.
 pub const SETTLE_FRAMES: u32 = 3;
@@ -46,6 +67,114 @@ pub struct BudgetState {
     /// of drape before settling: none).
     #[serde(default)]
     pub settle: u32,
+    /// Frames in a row that missed a target at the cap, and the sum of their
+    /// [`Targets::excess`] (absent in older checkpoints: none).
+    #[serde(default)]
+    pub capped: (u32, f64),
+    /// The descent under way, if one is.
+    #[serde(default)]
+    pub descent: Option<Descent>,
+    /// Frames still to keep their budget when they miss, after a descent ended
+    /// ([`HOLD_FRAMES`]).
+    #[serde(default)]
+    pub hold: u32,
+}
+
+/// A descent from the cap: the window of frames at the current level so far, against the mean
+/// [`Targets::excess`] of the window at the level above.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct Descent {
+    pub above: f64,
+    pub frames: u32,
+    pub sum: f64,
+}
+
+impl BudgetState {
+    /// Whether a frame that misses a target may be simulated again at a larger budget: not
+    /// during a descent or a hold (a frame that goes unstable always may).
+    pub fn may_raise(&self) -> bool {
+        self.descent.is_none() && self.hold == 0
+    }
+
+    /// Moves to the next level up for a frame simulated again: it settles, and a descent ends.
+    pub fn raise(&mut self) {
+        self.level += 1;
+        self.calm = 0;
+        self.settle = SETTLE_FRAMES;
+        self.descent = None;
+    }
+
+    /// Chooses the next frame's level from this frame's reading `r` (taken at `self.level`):
+    /// returns why it changed, None when it did not. The caller applies the level.
+    pub fn after_frame(&mut self, t: &Targets, r: Reading) -> Option<String> {
+        let top = t.levels.len() - 1;
+        let met = t.missed(r).is_none();
+        let excess = t.excess(r).min(1e6);
+        self.settle = self.settle.saturating_sub(1);
+        self.hold = self.hold.saturating_sub(1);
+        if let Some(d) = self.descent.as_mut() {
+            d.frames += 1;
+            d.sum += excess;
+            if d.frames < CALM_FRAMES {
+                return None;
+            }
+            let (above, here) = (d.above, d.sum / f64::from(d.frames));
+            if here - above > FUTILE_SHARE * (above - 1.0).max(0.0) {
+                self.descent = None;
+                self.raise();
+                self.hold = HOLD_FRAMES;
+                return Some(format!("{CALM_FRAMES} frames a level lower missed the targets by more ({here:.2} of them against {above:.2}, in the mean): raised back, misses kept for {HOLD_FRAMES} frames"));
+            }
+            if self.level == 0 {
+                self.descent = None;
+                self.hold = HOLD_FRAMES;
+                return None;
+            }
+            *d = Descent {
+                above: here,
+                frames: 0,
+                sum: 0.0,
+            };
+            self.level -= 1;
+            self.calm = 0;
+            return Some(format!("{CALM_FRAMES} frames missed the targets by no more than a level higher ({here:.2} of them against {above:.2}, in the mean): lowered"));
+        }
+        if !met && self.level == top && top > 0 && self.hold == 0 {
+            self.capped = (self.capped.0 + 1, self.capped.1 + excess);
+            if self.capped.0 < CALM_FRAMES {
+                return None;
+            }
+            let above = self.capped.1 / f64::from(self.capped.0);
+            self.capped = (0, 0.0);
+            self.descent = Some(Descent {
+                above,
+                frames: 0,
+                sum: 0.0,
+            });
+            self.level -= 1;
+            self.calm = 0;
+            self.settle = 0;
+            return Some(format!("{CALM_FRAMES} frames missed the targets at the largest budget ({above:.2} of them, in the mean): lowered, to see whether the budget is what holds them off"));
+        }
+        self.capped = (0, 0.0);
+        if met && t.close(r) && self.level < top && self.hold == 0 {
+            self.raise();
+            return Some("the last frame came within a quarter of a target: raised".into());
+        }
+        if !t.calm(r) {
+            self.calm = 0;
+            return None;
+        }
+        self.calm += 1;
+        if self.calm < CALM_FRAMES || self.level == 0 {
+            return None;
+        }
+        self.level -= 1;
+        self.calm = 0;
+        Some(format!(
+            "{CALM_FRAMES} frames with half the margin to spare: lowered"
+        ))
+    }
 }
 
 impl FrameBudget {
@@ -140,6 +269,21 @@ impl Targets {
         None
     }
 
+    /// How far a frame that reads `r` is from the targets: the largest of its readings over its
+    /// target (above 1 it misses one); infinite when a reading is not finite.
+    pub fn excess(&self, r: Reading) -> f64 {
+        if !r.strain.is_finite() || !r.depth.is_finite() || !r.shear.is_finite() {
+            return f64::INFINITY;
+        }
+        let over = |value: f64, target: Option<f64>| target.map_or(0.0, |t| value / t);
+        over(r.strain, self.max_strain)
+            .max(over(
+                f64::from(r.depth),
+                self.max_penetration.map(f64::from),
+            ))
+            .max(over(r.shear, self.max_shear))
+    }
+
     /// True when a frame that reads `r` came within a quarter of a target: the next frame gets
     /// the next budget before it misses (a frame that misses is simulated again from its start,
     /// which cannot undo what a cheap budget let happen in the frames before it).
@@ -165,6 +309,7 @@ impl BudgetReport {
             max_shear: targets.max_shear,
             levels: targets.levels.clone(),
             met: frames.iter().all(|f| targets.missed(f.reading()).is_none()),
+            kept_missing: frames.iter().filter(|f| f.kept_missing).count(),
             max_strain_reached: frames.iter().map(|f| f.max_strain).fold(0.0, f64::max),
             deepest_penetration_reached: frames
                 .iter()
@@ -173,5 +318,89 @@ impl BudgetReport {
             max_shear_reached: frames.iter().map(|f| f.max_shear_deg).fold(0.0, f64::max),
             per_frame: frames.to_vec(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn targets() -> Targets {
+        Targets {
+            max_strain: Some(0.1),
+            max_penetration: None,
+            max_shear: None,
+            levels: LADDER.to_vec(),
+            passes: false,
+        }
+    }
+
+    fn reading(strain: f64) -> Reading {
+        Reading {
+            strain,
+            depth: 0.0,
+            shear: 0.0,
+        }
+    }
+
+    /// Runs `frames` frames from the cap, each reading what `strain` gives at its level, as
+    /// the bake keeps them (no frame simulated again): the levels the frames ran at.
+    fn levels_from_cap(frames: usize, strain: impl Fn(usize) -> f64) -> Vec<usize> {
+        let t = targets();
+        let mut state = BudgetState {
+            level: LADDER.len() - 1,
+            ..BudgetState::default()
+        };
+        (0..frames)
+            .map(|_| {
+                let level = state.level;
+                state.after_frame(&t, reading(strain(level)));
+                level
+            })
+            .collect()
+    }
+
+    #[test]
+    fn misses_no_budget_reaches_walk_the_budget_down_a_window_at_a_time() {
+        // Strain that contact forces: 30 % at every level.
+        let levels = levels_from_cap(100, |_| 0.3);
+        let top = LADDER.len() - 1;
+        assert!(levels[..10].iter().all(|&l| l == top), "{levels:?}");
+        for step in 1..=top {
+            let window = &levels[10 * step..10 * (step + 1)];
+            assert!(window.iter().all(|&l| l == top - step), "{levels:?}");
+        }
+        assert!(levels[80..].iter().all(|&l| l == 0), "{levels:?}");
+    }
+
+    #[test]
+    fn a_miss_of_the_solvers_making_goes_back_up_after_one_window_and_holds() {
+        // Strain the budget halves a level up: 20 % over the target at the cap.
+        let top = LADDER.len() - 1;
+        let levels = levels_from_cap(60, |l| 0.12 * 2f64.powi((top - l) as i32));
+        assert!(levels[..10].iter().all(|&l| l == top), "{levels:?}");
+        assert!(levels[10..20].iter().all(|&l| l == top - 1), "{levels:?}");
+        // Back at the cap, held there while it misses: no second descent for HOLD_FRAMES.
+        let held = 20 + HOLD_FRAMES as usize;
+        assert!(levels[20..held].iter().all(|&l| l == top), "{levels:?}");
+    }
+
+    #[test]
+    fn frames_that_meet_the_targets_move_as_before() {
+        let t = targets();
+        let mut state = BudgetState {
+            level: 3,
+            ..BudgetState::default()
+        };
+        // Within a quarter of the target: one level up.
+        assert!(state.after_frame(&t, reading(0.08)).is_some());
+        assert_eq!((state.level, state.settle), (4, SETTLE_FRAMES));
+        // Half the margin to spare for CALM_FRAMES frames: one level down.
+        for _ in 1..CALM_FRAMES {
+            assert!(state.after_frame(&t, reading(0.04)).is_none());
+        }
+        assert!(state.after_frame(&t, reading(0.04)).is_some());
+        assert_eq!(state.level, 3);
+        assert_eq!(state.descent, None);
     }
 }

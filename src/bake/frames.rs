@@ -1,7 +1,7 @@
 //! The frame loop: step, tear, measure and write each frame as it is made (with a checkpoint
 //! now and then), until the last, until the simulation becomes unstable or until a signal.
 
-use super::budget::{BudgetReport, FrameBudget, Reading, Targets, CALM_FRAMES, SETTLE_FRAMES};
+use super::budget::{BudgetReport, FrameBudget, Reading, Targets};
 use super::checkpoint::{self, Measured, Progress};
 use super::output::Exports;
 use super::report::{collider_penetrations, frame_metrics, preroll_mesh, preroll_strain};
@@ -287,6 +287,7 @@ fn step_within(
     let before = sim.snapshot();
     let mut attempts = 1;
     let mut why = std::mem::take(&mut progress.budget.pending_why);
+    let mut kept_missing = false;
     let reading = loop {
         if progress.budget.settle > 0 {
             sim.settle_frame();
@@ -295,17 +296,25 @@ fn step_within(
         let error = sim.constraint_error();
         let reading = accuracy_of(sim, &error, meshes, index);
         // A frame the stability rule rejects is simulated again at a higher budget too, while
-        // there is one (the cheap end of the ladder can gain energy on stiff springs).
-        let missed = t.missed(reading).or_else(|| {
+        // there is one (the cheap end of the ladder can gain energy on stiff springs); one that
+        // misses a target, while the budget may rise.
+        let unstable = || {
             unstable_now(sim, &error, progress).map(|r| format!("the frame went unstable ({r})"))
-        });
+        };
+        let missed = match t.missed(reading) {
+            Some(_) if t.excess(reading).is_finite() && !progress.budget.may_raise() => {
+                kept_missing = true;
+                unstable()
+            }
+            Some(reason) => Some(reason),
+            None => unstable(),
+        };
         match missed {
             Some(reason) if progress.budget.level + 1 < t.levels.len() => {
                 sim.restore(&before)
                     .expect("a simulation takes its own snapshot");
-                progress.budget.level += 1;
-                progress.budget.calm = 0;
-                progress.budget.settle = SETTLE_FRAMES;
+                progress.budget.raise();
+                kept_missing = false;
                 t.apply(sim, progress.budget.level);
                 let (s, i) = t.levels[progress.budget.level];
                 why = format!("{reason}: raised to {s} substeps × {i} iterations");
@@ -330,27 +339,11 @@ fn step_within(
         } else {
             0.0
         },
+        kept_missing,
     });
-    progress.budget.settle = progress.budget.settle.saturating_sub(1);
-    let top = t.levels.len() - 1;
-    if t.close(reading) && progress.budget.level < top {
-        progress.budget.level += 1;
-        progress.budget.calm = 0;
-        progress.budget.settle = SETTLE_FRAMES;
+    if let Some(why) = progress.budget.after_frame(t, reading) {
         t.apply(sim, progress.budget.level);
-        progress.budget.pending_why =
-            "the last frame came within a quarter of a target: raised".into();
-    } else if t.calm(reading) {
-        progress.budget.calm += 1;
-        if progress.budget.calm >= CALM_FRAMES && progress.budget.level > 0 {
-            progress.budget.level -= 1;
-            progress.budget.calm = 0;
-            t.apply(sim, progress.budget.level);
-            progress.budget.pending_why =
-                format!("{CALM_FRAMES} frames with half the margin to spare: lowered");
-        }
-    } else {
-        progress.budget.calm = 0;
+        progress.budget.pending_why = why;
     }
     Ok(())
 }

@@ -265,8 +265,14 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
     }
     if let Some(b) = r.budget.as_ref().filter(|b| !b.met) {
         let (s, i) = b.levels[b.levels.len() - 1];
+        let kept = match b.kept_missing {
+            0 => String::new(),
+            n => format!(
+                "; {n} of them were kept at a smaller budget, where they missed by about as much as at the larger one (budget.per_frame[].kept_missing): what holds them off is then not the solver's budget but the scene (cloth pressed between body parts, or forced by its attachments), and a looser target or a change to the scene meets them, more substeps do not"
+            ),
+        };
         eprintln!(
-            "drape: error: some frames missed the accuracy targets even at the largest budget ({s} substeps × {i} iterations): worst strain {:.2} %, deepest penetration {:.2} mm; the frames and report.json (budget.per_frame) are in {}",
+            "drape: error: some frames missed the accuracy targets (the largest budget is {s} substeps × {i} iterations): worst strain {:.2} %, deepest penetration {:.2} mm{kept}; the frames and report.json (budget.per_frame) are in {}",
             b.max_strain_reached * 100.0,
             b.deepest_penetration_reached * 1e3,
             result.out.display()

@@ -471,6 +471,11 @@ pub struct FrameBudget {
     /// Kinetic energy the frame's settling took out [J] (0 when it did not settle).
     #[serde(default)]
     pub settled_joules: f64,
+    /// It missed a target and was kept at its budget, not simulated again: the bake was
+    /// descending from the cap, or had found a level missing as much as the one below it
+    /// (`drape::bake::budget`).
+    #[serde(default)]
+    pub kept_missing: bool,
 }
 
 /// The report's account of the budget.
@@ -484,6 +489,8 @@ pub struct BudgetReport {
     pub levels: Vec<(u32, u32)>,
     /// True when every frame met the targets.
     pub met: bool,
+    /// Frames that missed a target and were kept at their budget (`FrameBudget::kept_missing`).
+    pub kept_missing: usize,
     /// The worst strain, deepest penetration [m] and worst cell shear [degrees] over the bake.
     pub max_strain_reached: f64,
     pub deepest_penetration_reached: f32,
