@@ -79,14 +79,18 @@ impl Weld {
             .iter()
             .map(|v| {
                 let n = weld.len() as u32;
-                let cell = (*v / WELD).round().as_dvec3().to_array().map(|c| c as i64);
-                *weld.entry(cell).or_insert(n)
+                *weld.entry(Weld::place(*v)).or_insert(n)
             })
             .collect();
         Weld {
             slots: weld.len(),
             slot,
         }
+    }
+
+    /// The place a vertex at `v` is welded by: vertices at one place share a slot.
+    pub fn place(v: Vec3) -> [i64; 3] {
+        (v / WELD).round().as_dvec3().to_array().map(|c| c as i64)
     }
 
     /// Each slot's triangles (compressed rows: `faces[start[s]..start[s + 1]]`), a triangle

@@ -12,7 +12,10 @@
 //! found through a uniform grid over the triangles' bounding boxes (a cell two mean edges
 //! long), each pair tested once, in the cell holding the low corner of the two boxes' overlap.
 
+mod body;
+
 use crate::mesh::Weld;
+pub use body::{SelfCrossings, APART};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -206,61 +209,6 @@ pub fn pairs(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
         .collect();
     found.sort_unstable();
     found
-}
-
-/// A character passing through itself: the pairs of its own triangles that intersect in a
-/// frame and lay farther apart than [`APART`] of its size in its rest pose. Cloth caught where
-/// one part of a body sinks into another (a hand into a thigh) has no place outside the mesh,
-/// so the bake reports these frames beside the mesh penetrations. Parts that overlap by
-/// construction (a robot's rigid pieces at their joints) touch in the rest pose and are left
-/// out, as are neighbouring triangles a bend folds through each other.
-pub struct SelfCrossings {
-    /// Each triangle's box in the rest pose.
-    rest: Vec<(Vec3, Vec3)>,
-    /// How far apart two triangles' rest boxes must be for their crossing to count [m].
-    apart: f32,
-}
-
-/// The share of a character's size (its rest pose's largest extent) two of its triangles must
-/// lie apart in the rest pose for their crossing to count: 5 %, 7.5 cm on a 1.5 m character
-/// (his hand and thigh lie 45 cm apart in a T-pose, a robot's forearm and hand touch).
-pub const APART: f32 = 0.05;
-
-impl SelfCrossings {
-    /// A character whose `triangles` rest at `rest` (its bake's first frame).
-    pub fn new(rest: &[Vec3], triangles: &[[u32; 3]]) -> SelfCrossings {
-        let (lo, hi) = (rest.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        });
-        let size = (hi - lo).max_element().max(0.0);
-        let boxes = (triangles.iter())
-            .map(|t| {
-                let [a, b, c] = t.map(|i| rest[i as usize]);
-                (a.min(b).min(c), a.max(b).max(c))
-            })
-            .collect();
-        SelfCrossings {
-            rest: boxes,
-            apart: APART * size,
-        }
-    }
-
-    /// How many pairs of `triangles` (over `positions`) pass through each other and lay apart
-    /// in the rest pose.
-    pub fn count(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
-        self.pairs(positions, triangles).len()
-    }
-
-    /// Those pairs, as indices into `triangles` (the lower first), sorted.
-    pub fn pairs(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
-        let gap = |(i, j): &(u32, u32)| {
-            let ((a_lo, a_hi), (b_lo, b_hi)) = (self.rest[*i as usize], self.rest[*j as usize]);
-            (a_lo - b_hi).max(b_lo - a_hi).max(Vec3::ZERO).length()
-        };
-        let mut found = pairs(positions, triangles);
-        found.retain(|p| gap(p) > self.apart);
-        found
-    }
 }
 
 /// How far both ends of an edge must lie from a triangle's plane, on either side [m], for the
