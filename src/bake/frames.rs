@@ -446,11 +446,8 @@ fn mesh_penetrations<'m>(
         .zip(&probes.0)
         .map(|((name, vertices, _), topology)| {
             let surface = collide::mesh::Surface::posed(topology, vertices);
-            let held = match held.is_empty() {
-                true => collide::Penetration::default(),
-                false => surface.penetration(&held),
-            };
-            (name, [surface.penetration(&free), held])
+            let found = surface.penetrations(&[&free, &held]);
+            (name, [found[0], found[1]])
         })
         .collect()
 }

@@ -201,29 +201,49 @@ impl<'t> Surface<'t> {
 
     /// How many of `points` lie inside and the deepest of them [m].
     pub fn penetration(&self, points: &[Vec3]) -> Penetration {
-        let Some(normals) = &self.open else {
-            // Closed: the winding number picks the points inside (few, usually none), and
-            // only those are measured.
-            let columns = Columns::new(self);
-            let inside: Vec<Vec3> = points
-                .par_iter()
-                .with_min_len(1024)
-                .filter(|&&p| columns.inside(self, p))
-                .copied()
-                .collect();
-            let near = NearGrid::new(self, &inside);
-            return inside
-                .par_iter()
-                .map(|&p| {
-                    let depth = match near.nearest(self, p) {
-                        Some((d2, ..)) => d2.sqrt(),
-                        None => self.distance(p),
-                    };
-                    // At least a hair deep, so a point on the surface counts.
-                    Penetration::of_depth(depth.max(f32::MIN_POSITIVE))
-                })
-                .reduce(Penetration::default, Penetration::merge);
-        };
+        self.penetrations(&[points])[0]
+    }
+
+    /// [`Self::penetration`] of each of `sets` (a closed surface's rays are bucketed once for
+    /// them all).
+    pub fn penetrations(&self, sets: &[&[Vec3]]) -> Vec<Penetration> {
+        let columns = self.open.is_none().then(|| Columns::new(self));
+        (sets.iter())
+            .map(|points| match &columns {
+                _ if points.is_empty() => Penetration::default(),
+                Some(columns) => self.closed_penetration(columns, points),
+                None => self.open_penetration(points),
+            })
+            .collect()
+    }
+
+    /// [`Self::penetration`] of a closed surface: the winding number picks the points inside
+    /// (few, usually none), and only those are measured.
+    fn closed_penetration(&self, columns: &Columns, points: &[Vec3]) -> Penetration {
+        let inside: Vec<Vec3> = points
+            .par_iter()
+            .with_min_len(1024)
+            .filter(|&&p| columns.inside(self, p))
+            .copied()
+            .collect();
+        let near = NearGrid::new(self, &inside);
+        inside
+            .par_iter()
+            .map(|&p| {
+                let depth = match near.nearest(self, p) {
+                    Some((d2, ..)) => d2.sqrt(),
+                    None => self.distance(p),
+                };
+                // At least a hair deep, so a point on the surface counts.
+                Penetration::of_depth(depth.max(f32::MIN_POSITIVE))
+            })
+            .reduce(Penetration::default, Penetration::merge)
+    }
+
+    /// [`Self::penetration`] of an open surface: the nearest point's pseudonormal says which
+    /// side a point is on.
+    fn open_penetration(&self, points: &[Vec3]) -> Penetration {
+        let normals = self.open.as_ref().expect("an open surface");
         let near = NearGrid::new(self, points);
         // A count and a maximum: the same on any number of threads.
         points
@@ -490,7 +510,9 @@ struct Columns {
     /// The surface's largest X: a ray from beyond it crosses nothing.
     x_max: f32,
     size: [usize; 2],
-    buckets: Vec<Vec<u32>>,
+    /// Each column's triangles, in compressed rows: `triangles[start[c]..start[c + 1]]`.
+    start: Vec<u32>,
+    triangles: Vec<u32>,
 }
 
 /// Columns per side at most (a 64 × 64 grid over the body's Y–Z extent).
@@ -510,24 +532,47 @@ impl Columns {
             ((hi.x - lo.x) / cell) as usize + 1,
             ((hi.y - lo.y) / cell) as usize + 1,
         ];
-        let mut buckets = vec![Vec::new(); size[0] * size[1]];
-        for (t, tri) in surface.triangles().iter().enumerate() {
-            let [a, b, c] = tri.map(|i| yz(surface.vertices[i as usize]));
-            let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
-            let i0 = ((tlo - lo) / cell).as_uvec2();
-            let i1 = ((thi - lo) / cell).as_uvec2();
-            for i in i0.x..=i1.x.min(size[0] as u32 - 1) {
-                for j in i0.y..=i1.y.min(size[1] as u32 - 1) {
-                    buckets[i as usize * size[1] + j as usize].push(t as u32);
+        // Each triangle's columns, as (first, last) in each direction.
+        let spans: Vec<[glam::UVec2; 2]> = (surface.triangles().iter())
+            .map(|tri| {
+                let [a, b, c] = tri.map(|i| yz(surface.vertices[i as usize]));
+                let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+                let last = glam::UVec2::new(size[0] as u32 - 1, size[1] as u32 - 1);
+                [
+                    ((tlo - lo) / cell).as_uvec2(),
+                    ((thi - lo) / cell).as_uvec2().min(last),
+                ]
+            })
+            .collect();
+        // Calls `visit` with each (column, triangle) a triangle's span covers.
+        fn each(spans: &[[glam::UVec2; 2]], rows: usize, mut visit: impl FnMut(usize, u32)) {
+            for (t, [i0, i1]) in spans.iter().enumerate() {
+                for i in i0.x..=i1.x {
+                    for j in i0.y..=i1.y {
+                        visit(i as usize * rows + j as usize, t as u32);
+                    }
                 }
             }
         }
+        // A counting sort: the columns' sizes, their starts, then the triangles in place.
+        let mut start = vec![0u32; size[0] * size[1] + 1];
+        each(&spans, size[1], |c, _| start[c + 1] += 1);
+        for c in 1..start.len() {
+            start[c] += start[c - 1];
+        }
+        let mut next = start.clone();
+        let mut triangles = vec![0u32; start[start.len() - 1] as usize];
+        each(&spans, size[1], |c, t| {
+            triangles[next[c] as usize] = t;
+            next[c] += 1;
+        });
         Columns {
             cell,
             lo,
             x_max: surface.vertices.iter().fold(f32::MIN, |m, v| m.max(v.x)),
             size,
-            buckets,
+            start,
+            triangles,
         }
     }
 
@@ -559,7 +604,8 @@ impl Columns {
             return Some(0);
         }
         let mut winding = 0;
-        for &t in &self.buckets[i * self.size[1] + j] {
+        let c = i * self.size[1] + j;
+        for &t in &self.triangles[self.start[c] as usize..self.start[c + 1] as usize] {
             let [a, b, c] = surface.triangles()[t as usize].map(|v| surface.vertices[v as usize]);
             winding += crossing(p, a, b, c)?;
         }

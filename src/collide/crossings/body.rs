@@ -1,9 +1,11 @@
 //! A character passing through itself ([`SelfCrossings`]), found through a tree of its
 //! triangles built once on its rest pose and refitted every frame. Only pairs of triangles that
-//! lay farther apart than [`APART`] at rest count, so every part of the tree no larger than that
-//! at rest is left out of the search of itself, and two parts are searched against each other
-//! only where their boxes overlap in the frame and could hold such a pair: a search over the
-//! few places where one limb meets another, not over every neighbouring pair of the mesh.
+//! lay farther apart than [`APART`] at rest count, and two triangles' boxes lie no farther apart
+//! than their centroids: so every part of the tree whose triangles' centroids lay within that
+//! distance of each other at rest is left out of the search of itself, and two parts are
+//! searched against each other only where their boxes overlap in the frame and their centroids
+//! lay far enough apart at rest: a search over the places where one limb meets another, not
+//! over every neighbouring pair of the mesh.
 
 use super::intersect;
 use crate::mesh::Weld;
@@ -46,8 +48,10 @@ struct Node {
     end: u32,
     /// Its two children, or none for a leaf.
     children: Option<[u32; 2]>,
-    /// The box of its triangles' rest boxes.
-    rest: Bounds,
+    /// The box of its triangles' rest centroids: two triangles' boxes lie no farther apart
+    /// than their centroids, so no pair under two nodes lay farther apart at rest than the
+    /// farthest points of these boxes.
+    centres: Bounds,
 }
 
 fn union(a: Bounds, b: Bounds) -> Bounds {
@@ -74,42 +78,42 @@ fn gap(a: Bounds, b: Bounds) -> f32 {
 }
 
 impl Tree {
-    fn new(rest: &[Bounds]) -> Tree {
+    /// Over triangles whose rest centroids are `centres`.
+    fn new(centres: &[Vec3]) -> Tree {
         let mut tree = Tree {
-            order: (0..rest.len() as u32).collect(),
+            order: (0..centres.len() as u32).collect(),
             nodes: Vec::new(),
         };
-        if !rest.is_empty() {
-            tree.split(rest, 0, rest.len());
+        if !centres.is_empty() {
+            tree.split(centres, 0, centres.len());
         }
         tree
     }
 
     /// Adds the node over `order[start..end]` and its subtree; returns its index.
-    fn split(&mut self, rest: &[Bounds], start: usize, end: usize) -> u32 {
+    fn split(&mut self, centres: &[Vec3], start: usize, end: usize) -> u32 {
         let run = &mut self.order[start..end];
-        let bounds = (run.iter().map(|&t| rest[t as usize])).reduce(union);
+        let centre = |t: u32| centres[t as usize];
+        let (lo, hi) = (run.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(centre(t)), hi.max(centre(t)))
+        });
         let index = self.nodes.len() as u32;
         self.nodes.push(Node {
             start: start as u32,
             end: end as u32,
             children: None,
-            rest: bounds.expect("a node holds a triangle"),
+            centres: (lo, hi),
         });
         if end - start <= LEAF {
             return index;
         }
-        let centre = |t: u32| (rest[t as usize].0 + rest[t as usize].1) * 0.5;
-        let (lo, hi) = (run.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &t| {
-            (lo.min(centre(t)), hi.max(centre(t)))
-        });
         let axis = (hi - lo).max_position();
         let middle = run.len() / 2;
         run.select_nth_unstable_by(middle, |&a, &b| {
             centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b))
         });
-        let left = self.split(rest, start, start + middle);
-        let right = self.split(rest, start + middle, end);
+        let left = self.split(centres, start, start + middle);
+        let right = self.split(centres, start + middle, end);
         self.nodes[index as usize].children = Some([left, right]);
         index
     }
@@ -146,8 +150,11 @@ impl SelfCrossings {
         let boxes: Vec<Bounds> = (triangles.iter())
             .map(|t| bounds_of(t.map(|i| rest[i as usize])))
             .collect();
+        let centres: Vec<Vec3> = (triangles.iter())
+            .map(|t| t.iter().map(|&i| rest[i as usize]).sum::<Vec3>() / 3.0)
+            .collect();
         SelfCrossings {
-            tree: Tree::new(&boxes),
+            tree: Tree::new(&centres),
             rest: boxes,
             apart: APART * size,
         }
@@ -192,7 +199,7 @@ impl SelfCrossings {
         while let Some((a, b)) = stack.pop() {
             let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
             // No pair under these two lay more than `apart` apart at rest, or none meets now.
-            if farthest(na.rest, nb.rest) <= self.apart
+            if farthest(na.centres, nb.centres) <= self.apart
                 || !overlap(now[a as usize], now[b as usize])
             {
                 continue;
