@@ -3,20 +3,23 @@
 //! misses a target is simulated again from its start state at the next level of [`LADDER`],
 //! a frame that comes within a quarter of a target raises the level for the next frame, and
 //! after [`CALM_FRAMES`] frames in a row that met both targets with half the margin to
-//! spare, the next frame tries one level lower. A frame that misses even at the cap may miss for
-//! reasons no budget reaches (cloth pressed between body parts, a pose that forces it), and the
-//! cap costs 16 times the cheapest level: after [`CALM_FRAMES`] such frames in a row the budget
-//! descends, a window of [`CALM_FRAMES`] frames a level, while each window misses the targets
-//! by no more than the one above it (by less than [`FUTILE_SHARE`] of that window's margin:
-//! [`Targets::excess`]); the frames of a descent are kept when they miss (the report marks them
-//! `kept_missing`). A window that misses by more sends the budget back up one level, where
-//! misses are kept for [`HOLD_FRAMES`] frames before raising is tried again. Windows, not one
-//! frame simulated at two budgets, since a frame starts from the state the frames before it
-//! left: simulated again at a larger budget, a frame whose cloth a cheap budget let tangle is
-//! no better, whatever the budget could have done from the start. Substeps and iterations the scene gives itself
-//! stay fixed (the ladder moves only what it leaves out); collision passes follow the iterations
-//! when the scene has them on. Every decision depends only on the frames, so a bake gives the
-//! same frames every time.
+//! spare, the next frame tries one level lower.
+//!
+//! A frame that misses even at the cap may miss for reasons no budget reaches (cloth pressed
+//! between body parts, a pose that forces it), and the cap costs 16 times the cheapest level:
+//! after [`CALM_FRAMES`] such frames in a row the budget descends, a window of [`CALM_FRAMES`]
+//! frames a level, while each window misses the targets by no more than the one above it (by
+//! less than [`FUTILE_SHARE`] of that window's margin: [`Targets::excess`]); the frames of a
+//! descent are kept when they miss (the report marks them `kept_missing`). A window that misses
+//! by more sends the budget back up one level, where misses are kept for [`HOLD_FRAMES`] frames
+//! before raising is tried again. Windows, not one frame simulated at two budgets, since a
+//! frame starts from the state the frames before it left: simulated again at a larger budget,
+//! a frame whose cloth a cheap budget let tangle is no better, whatever the budget could have
+//! done from the start.
+//!
+//! Substeps and iterations the scene gives itself stay fixed (the ladder moves only what it
+//! leaves out); collision passes follow the iterations when the scene has them on. Every
+//! decision depends only on the frames, so a bake gives the same frames every time.
 
 pub use crate::report::{BudgetReport, FrameBudget};
 use crate::scene::Scene;
