@@ -110,6 +110,73 @@ fn a_target_no_budget_meets_fails_with_the_frames_kept() {
     assert!(common::stderr(&out).contains("--max-strain"));
 }
 
+/// A bake whose frames miss at the cap ten in a row steps down to see whether the budget is
+/// what holds them off, keeps the frames it misses meanwhile (`kept_missing`) and says so; here
+/// the target (a strain of 10⁻⁹) is of the budget's making, so the window below misses by more
+/// and the budget goes back up to the cap. Stopped within the descent and resumed, the bake
+/// gives the same frames and the same budget frame for frame.
+#[test]
+fn misses_at_the_cap_step_down_a_window_and_a_resumed_descent_is_the_same() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    let text = r#"{ "frames": 40, "backend": "cpu", "accuracy": { "max_strain": 1e-9 },
+                    "output": { "obj": false, "gltf": "none" },
+                    "garments": [{ "resolution": [8, 8], "pins": [[0, 0]] }] }"#;
+    common::write(d, "scene.json", text);
+    let whole = common::drape(d, &["bake", "scene.json", "--out", "whole"]);
+    let err = common::stderr(&whole);
+    assert_eq!(whole.status.code(), Some(1), "{err}");
+    assert!(err.contains("kept at a smaller budget"), "{err}");
+    let stopped = common::drape(
+        d,
+        &["bake", "scene.json", "--out", "parts", "--until", "15"],
+    );
+    assert_eq!(
+        stopped.status.code(),
+        Some(1),
+        "{}",
+        common::stderr(&stopped)
+    );
+    let resumed = common::drape(d, &["bake", "scene.json", "--out", "parts", "--resume"]);
+    assert_eq!(
+        resumed.status.code(),
+        Some(1),
+        "{}",
+        common::stderr(&resumed)
+    );
+    let report = |out: &str| -> serde_json::Value {
+        let text = std::fs::read_to_string(d.join(out).join("report.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let (whole, parts) = (report("whole"), report("parts"));
+    let budgets = |r: &serde_json::Value| -> Vec<(u64, u64, bool)> {
+        (r["budget"]["per_frame"].as_array().unwrap().iter())
+            .map(|f| {
+                let kept = f["kept_missing"].as_bool().unwrap();
+                (
+                    f["substeps"].as_u64().unwrap(),
+                    f["iterations"].as_u64().unwrap(),
+                    kept,
+                )
+            })
+            .collect()
+    };
+    let levels = budgets(&whole);
+    let cap = drape::bake::budget::LADDER[drape::bake::budget::LADDER.len() - 1];
+    let below = drape::bake::budget::LADDER[drape::bake::budget::LADDER.len() - 2];
+    let at = |k: usize| (levels[k].0 as u32, levels[k].1 as u32);
+    // Ten frames at the cap (the first climbs to it), ten a level below, kept; then the cap.
+    assert!((1..10).all(|k| at(k) == cap), "{levels:?}");
+    assert!(
+        (10..20).all(|k| at(k) == below && levels[k].2),
+        "{levels:?}"
+    );
+    assert!((20..40).all(|k| at(k) == cap), "{levels:?}");
+    assert_eq!(whole["budget"]["kept_missing"], 10);
+    assert_eq!(parts["frames_hash"], whole["frames_hash"]);
+    assert_eq!(budgets(&parts), levels);
+}
+
 /// A curtain whose top edge a keyframed rail carries 0.6 m along +X in the first second: where
 /// the cloth is depends on the clock.
 const RAIL: &str = r#"{ "frames": 10, "substeps": 5, "backend": "cpu",

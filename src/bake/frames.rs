@@ -302,7 +302,11 @@ fn step_within(
             unstable_now(sim, &error, progress).map(|r| format!("the frame went unstable ({r})"))
         };
         let missed = match t.missed(reading) {
-            Some(_) if t.excess(reading).is_finite() && !progress.budget.may_raise() => {
+            Some(_)
+                if t.excess(reading).is_finite()
+                    && !progress.budget.may_raise()
+                    && progress.budget.level + 1 < t.levels.len() =>
+            {
                 kept_missing = true;
                 unstable()
             }

@@ -471,9 +471,9 @@ pub struct FrameBudget {
     /// Kinetic energy the frame's settling took out [J] (0 when it did not settle).
     #[serde(default)]
     pub settled_joules: f64,
-    /// It missed a target and was kept at its budget, not simulated again: the bake was
-    /// descending from the cap, or had found a level missing as much as the one below it
-    /// (`drape::bake::budget`).
+    /// It missed a target and was kept at its budget, not simulated again at the larger one
+    /// there was: the bake was descending from the cap, or holding the level it went back up
+    /// to after one (`drape::bake::budget`).
     #[serde(default)]
     pub kept_missing: bool,
 }
