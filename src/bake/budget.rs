@@ -123,7 +123,6 @@ impl BudgetState {
             }
             let (above, here) = (d.above, d.sum / f64::from(d.frames));
             if here - above > FUTILE_SHARE * (above - 1.0).max(0.0) {
-                self.descent = None;
                 self.raise();
                 self.hold = HOLD_FRAMES;
                 return Some(format!("{CALM_FRAMES} frames a level lower missed the targets by more ({here:.2} of them against {above:.2}, in the mean): raised back, misses kept for {HOLD_FRAMES} frames"));

@@ -128,10 +128,11 @@ pub fn run(
             (report.character_in_colliders_per_frame)
                 .push(crate::report::FrameCharacterDepth { frame, deepest_m });
         }
-        let crossings = self_crossings;
-        if !crossings.is_empty() {
-            (report.character_crossings_per_frame)
-                .push(crate::report::FrameSelfCrossings { frame, crossings });
+        if !self_crossings.is_empty() {
+            (report.character_crossings_per_frame).push(crate::report::FrameSelfCrossings {
+                frame,
+                crossings: self_crossings,
+            });
         }
         if let Some(r) = &sim.residuals {
             progress.residuals.push(r.clone());
