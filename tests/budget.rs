@@ -323,3 +323,112 @@ fn a_frame_the_stability_rule_rejects_is_simulated_again_at_a_higher_budget() {
         "{first:?}"
     );
 }
+
+/// A 32 × 32 sheet dropped from 2 m onto a ball 0.2 m across at 24 fps, caught at its middle
+/// while the rest falls on: at drape's default budget (10 substeps × 10 iterations a frame) a
+/// spring passes 100 % at frame 18. `budget` is inserted as top-level fields.
+fn dropped_on_a_ball(budget: &str) -> String {
+    format!(
+        r#"{{ "fps": 24, "frames": 30, "backend": "cpu"{budget},
+              "output": {{ "gltf": "none" }},
+              "garments": [{{ "name": "sheet", "resolution": [32, 32], "size": [1.2, 1.2],
+                              "position": [0, 2, 0] }}],
+              "colliders": [{{ "kind": "sphere", "centre": [0, 0.5, 0], "radius": 0.1 }}] }}"#
+    )
+}
+
+/// A scene that leaves drape its budget does not stop where a frame goes unstable at it: that
+/// frame is simulated again at the next level up, the bake is whole, and it says so. Every
+/// frame before it is the one the same budget given in the scene bakes (which stops there), and
+/// stopped after the raise and resumed, the bake is the same. A scene that gives its budget
+/// keeps it and stops.
+#[test]
+fn a_budget_left_to_drape_takes_a_frame_that_goes_unstable_again_at_a_larger_one() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    common::write(d, "left.json", &dropped_on_a_ball(""));
+    let given = r#", "substeps": 10, "solver": { "iterations": 10 }"#;
+    common::write(d, "given.json", &dropped_on_a_ball(given));
+    let fixed = common::drape(d, &["bake", "given.json", "--out", "fixed"]);
+    assert_eq!(fixed.status.code(), Some(1), "{}", common::stderr(&fixed));
+    let left = common::drape(d, &["bake", "left.json", "--out", "left"]);
+    let err = common::stderr(&left);
+    assert_eq!(left.status.code(), Some(0), "{err}");
+    assert!(err.contains("went unstable at the scene's budget"), "{err}");
+    let report = |out: &str| -> serde_json::Value {
+        let text = std::fs::read_to_string(d.join(out).join("report.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let (fixed, left) = (report("fixed"), report("left"));
+    assert_eq!(fixed["budget"], serde_json::Value::Null);
+    let failed = fixed["failure"]["frame"].as_u64().unwrap();
+    assert_eq!(left["stable"], true);
+    assert_eq!(left["frames_baked"], 30);
+    let budget = &left["budget"];
+    assert_eq!(budget["kind"], "stability");
+    assert_eq!(budget["levels"][0], serde_json::json!([10, 10]));
+    let frames = budget["per_frame"].as_array().unwrap();
+    let retried: Vec<u64> = (frames.iter())
+        .filter(|f| f["attempts"].as_u64().unwrap() > 1)
+        .map(|f| f["frame"].as_u64().unwrap())
+        .collect();
+    assert_eq!(retried.first(), Some(&failed), "{frames:?}");
+    let raised = &frames[failed as usize - 1];
+    assert_eq!(
+        (&raised["substeps"], &raised["iterations"]),
+        (&20.into(), &10.into())
+    );
+    for f in &frames[..failed as usize - 1] {
+        assert_eq!((&f["substeps"], &f["iterations"]), (&10.into(), &10.into()));
+    }
+    let obj = |out: &str, f: u64| std::fs::read(d.join(format!("{out}/obj/sheet_{f:04}.obj")));
+    for f in 1..failed {
+        assert_eq!(
+            obj("fixed", f).unwrap(),
+            obj("left", f).unwrap(),
+            "frame {f}"
+        );
+    }
+    // Stopped two frames after the raise, and resumed.
+    let until = (failed + 2).to_string();
+    let first = common::drape(
+        d,
+        &["bake", "left.json", "--out", "parts", "--until", &until],
+    );
+    assert_eq!(first.status.code(), Some(0), "{}", common::stderr(&first));
+    let rest = common::drape(d, &["bake", "left.json", "--out", "parts", "--resume"]);
+    assert_eq!(rest.status.code(), Some(0), "{}", common::stderr(&rest));
+    let parts = report("parts");
+    assert_eq!(parts["frames_hash"], left["frames_hash"]);
+    assert_eq!(parts["budget"]["per_frame"], left["budget"]["per_frame"]);
+}
+
+/// A stable bake that leaves drape its budget gives the frames of the same budget given in the
+/// scene, every frame at it once.
+#[test]
+fn a_stable_bake_that_leaves_drape_its_budget_is_the_bake_at_that_budget() {
+    let sheet = |budget: &str| {
+        format!(
+            r#"{{ "frames": 20, "backend": "cpu"{budget}, "output": {{ "obj": false, "gltf": "none" }},
+                  "garments": [{{ "resolution": [16, 16], "size": [1, 1], "pins": [[0, 0], [-1, 0]] }}] }}"#
+        )
+    };
+    let left = run(&common::scene(&sheet("")));
+    let given = run(&common::scene(&sheet(
+        r#", "substeps": 10, "solver": { "iterations": 10 }"#,
+    )));
+    assert_eq!(left.frames_hash, given.frames_hash);
+    assert!(given.budget.is_none());
+    let b = left.budget.as_ref().unwrap();
+    assert_eq!(b.kind, drape::report::BudgetKind::Stability);
+    assert!(
+        (b.per_frame.iter()).all(|f| (f.substeps, f.iterations, f.attempts) == (10, 10, 1)),
+        "{:?}",
+        b.per_frame
+    );
+    assert!(
+        left.warnings.iter().all(|w| !w.contains("unstable")),
+        "{:?}",
+        left.warnings
+    );
+}

@@ -20,8 +20,18 @@
 //! Substeps and iterations the scene gives itself stay fixed (the ladder moves only what it
 //! leaves out); collision passes follow the iterations when the scene has them on. Every
 //! decision depends only on the frames, so a bake gives the same frames every time.
+//!
+//! Without targets, a bake on the CPU whose scene leaves drape its substeps or its iterations
+//! starts at the scene's budget (drape's defaults for what it leaves out) and answers to the
+//! stability rule alone ([`Targets::stability`]): its one target is the strain that stops a bake
+//! ([`STABLE_STRAIN`]), so a frame that goes unstable is simulated again at the next level of
+//! the ladder, and frames at half that strain lower the budget again, never below the scene's.
+//! No frame raises the next one's budget ahead of a miss (cloth pinched or caught keeps its
+//! strain at any budget: [`Targets::close`]). A budget left to drape should not end a bake that a
+//! larger one would carry; a scene that gives both keeps them, and a bake then stops where it
+//! goes unstable.
 
-pub use crate::report::{BudgetReport, FrameBudget};
+pub use crate::report::{BudgetKind, BudgetReport, FrameBudget};
 use crate::scene::Scene;
 use crate::sim::Simulation;
 use serde::{Deserialize, Serialize};
@@ -38,6 +48,12 @@ pub const LADDER: [(u32, u32); 8] = [
     (40, 20),
     (80, 20),
 ];
+
+/// The strain a budget that answers to stability alone holds frames under: the stability rule's
+/// (`scenes.md`: a spring stretched past 100 % stops a bake). As with a target, a frame over it
+/// is simulated again at a larger budget, and frames at half of it lower the budget again, down
+/// to the scene's own.
+pub const STABLE_STRAIN: f64 = 1.0;
 
 /// Frames in a row with a large margin after which a lower budget is tried.
 pub const CALM_FRAMES: u32 = 10;
@@ -161,7 +177,15 @@ impl BudgetState {
         self.capped = (0, 0.0);
         if met && t.close(r) && self.level < top && self.hold == 0 {
             self.raise();
-            return Some("the last frame came within a quarter of a target: raised".into());
+            return Some(
+                match t.kind {
+                    BudgetKind::Targets => {
+                        "the last frame came within a quarter of a target: raised"
+                    }
+                    BudgetKind::Stability => unreachable!("stability alone raises no budget ahead"),
+                }
+                .into(),
+            );
         }
         if !t.calm(r) {
             self.calm = 0;
@@ -173,9 +197,14 @@ impl BudgetState {
         }
         self.level -= 1;
         self.calm = 0;
-        Some(format!(
-            "{CALM_FRAMES} frames with half the margin to spare: lowered"
-        ))
+        Some(match t.kind {
+            BudgetKind::Targets => {
+                format!("{CALM_FRAMES} frames with half the margin to spare: lowered")
+            }
+            BudgetKind::Stability => {
+                format!("{CALM_FRAMES} frames at half the stability rule's strain or less: lowered")
+            }
+        })
     }
 }
 
@@ -211,6 +240,11 @@ pub struct Targets {
     pub levels: Vec<(u32, u32)>,
     /// Collision passes on (then as many as iterations) or off.
     pub passes: bool,
+    /// What moves the budget: the targets above, or stability alone (then there are none).
+    pub kind: BudgetKind,
+    /// The collision passes of the first level, when they are the scene's own (stability
+    /// alone: its first level is the scene's budget as it stands).
+    pub first_passes: Option<u32>,
 }
 
 impl Targets {
@@ -231,14 +265,58 @@ impl Targets {
             max_shear: a.max_shear.map(f64::from),
             levels,
             passes: scene.solver.contact_passes > 1,
+            kind: BudgetKind::Targets,
+            first_passes: None,
+        })
+    }
+
+    /// Stability alone, for a bake on the CPU of a scene without `accuracy` that leaves drape
+    /// its substeps or its iterations (see the module's docs): the one target [`STABLE_STRAIN`];
+    /// the first level the scene's budget as it stands, the others the ladder's levels above it
+    /// (what the scene gives stays fixed). None when the scene gives both, or has targets.
+    pub fn stability(scene: &Scene) -> Option<Targets> {
+        let fixed_substeps = scene.substeps.is_some() || scene.timestep.is_some();
+        let fixed_iterations = scene.iterations_given;
+        if scene.accuracy.is_some() || (fixed_substeps && fixed_iterations) {
+            return None;
+        }
+        let first = (scene.substeps_per_frame(), scene.solver.iterations);
+        let mut levels = vec![first];
+        for &(s, i) in &LADDER {
+            let level = (
+                if fixed_substeps { first.0 } else { s },
+                if fixed_iterations { first.1 } else { i },
+            );
+            let last = levels[levels.len() - 1];
+            if level.0 >= first.0 && level.1 >= first.1 && level.0 * level.1 > last.0 * last.1 {
+                levels.push(level);
+            }
+        }
+        (levels.len() > 1).then_some(Targets {
+            max_strain: Some(STABLE_STRAIN),
+            max_penetration: None,
+            max_shear: None,
+            levels,
+            passes: scene.solver.contact_passes > 1,
+            kind: BudgetKind::Stability,
+            first_passes: Some(scene.solver.contact_passes),
         })
     }
 
     /// Puts `sim` on `level`'s budget.
     pub fn apply(&self, sim: &mut Simulation, level: usize) {
         let (substeps, iterations) = self.levels[level];
-        let passes = if self.passes { iterations } else { 1 };
+        let passes = match self.first_passes {
+            Some(passes) if level == 0 => passes,
+            _ if self.passes => iterations,
+            _ => 1,
+        };
         sim.set_budget(substeps, iterations, passes);
+    }
+
+    /// True when the budget answers to stability alone ([`Targets::stability`]).
+    pub fn stability_only(&self) -> bool {
+        self.kind == BudgetKind::Stability
     }
 
     /// Which target a frame that reads `r` misses, if one does.
@@ -252,6 +330,13 @@ impl Targets {
             return Some("the frame went unstable".into());
         }
         if let Some(t) = self.max_strain.filter(|&t| strain > t) {
+            if self.stability_only() {
+                return Some(format!(
+                    "a spring stretched {:.0} % (the stability rule's limit is {:.0} %)",
+                    strain * 100.0,
+                    t * 100.0
+                ));
+            }
             return Some(format!(
                 "strain {:.2} % over the target {:.2} %",
                 strain * 100.0,
@@ -290,6 +375,13 @@ impl Targets {
     /// the next budget before it misses (a frame that misses is simulated again from its start,
     /// which cannot undo what a cheap budget let happen in the frames before it).
     pub fn close(&self, r: Reading) -> bool {
+        if self.stability_only() {
+            // Cloth pinched or caught holds its strain at any budget: raised ahead of time, a
+            // bake of `poncho_walk`'s poncho at drape's default budget went to the cap at frame
+            // 23 and stayed there (its worst spring at 76 % in every frame), 6 × the time of
+            // raising only the frames that went unstable.
+            return false;
+        }
         self.max_strain.is_some_and(|t| r.strain > 0.75 * t)
             || self.max_penetration.is_some_and(|t| r.depth > 0.75 * t)
             || self.max_shear.is_some_and(|t| r.shear > 0.75 * t)
@@ -306,6 +398,7 @@ impl Targets {
 impl BudgetReport {
     pub fn of(targets: &Targets, frames: &[FrameBudget]) -> BudgetReport {
         BudgetReport {
+            kind: targets.kind,
             max_strain: targets.max_strain,
             max_penetration: targets.max_penetration,
             max_shear: targets.max_shear,
@@ -334,6 +427,8 @@ mod tests {
             max_shear: None,
             levels: LADDER.to_vec(),
             passes: false,
+            kind: BudgetKind::Targets,
+            first_passes: None,
         }
     }
 
@@ -385,6 +480,36 @@ mod tests {
         // Back at the cap, held there while it misses: no second descent for HOLD_FRAMES.
         let held = 20 + HOLD_FRAMES as usize;
         assert!(levels[20..held].iter().all(|&l| l == top), "{levels:?}");
+    }
+
+    /// Stability alone starts at the scene's budget and climbs only what the scene leaves out;
+    /// a scene that gives both, or has targets, has none.
+    #[test]
+    fn stability_alone_climbs_from_the_scene_budget_what_it_leaves_out() {
+        let levels = |fields: &str| {
+            let text = format!(r#"{{ "garments": [{{ "resolution": [4, 4] }}]{fields} }}"#);
+            let scene = Scene::parse(&text, "<test>").expect("scene");
+            Targets::stability(&scene).map(|t| t.levels)
+        };
+        let all = Some(vec![(10, 10), (20, 10), (40, 10), (40, 20), (80, 20)]);
+        assert_eq!(levels(""), all);
+        assert_eq!(
+            levels(r#", "substeps": 20"#),
+            Some(vec![(20, 10), (20, 20)])
+        );
+        assert_eq!(
+            levels(r#", "solver": { "iterations": 3 }"#),
+            Some(vec![(10, 3), (20, 3), (40, 3), (80, 3)])
+        );
+        assert_eq!(
+            levels(r#", "timestep": 0.001, "solver": { "iterations": 30 }"#),
+            None
+        );
+        assert_eq!(
+            levels(r#", "substeps": 100, "solver": { "iterations": 30 }"#),
+            None
+        );
+        assert_eq!(levels(r#", "accuracy": { "max_strain": 0.1 }"#), None);
     }
 
     #[test]

@@ -295,7 +295,7 @@ fn step_within(
         }
         backend.step_frame(sim)?;
         let error = sim.constraint_error();
-        let reading = accuracy_of(sim, &error, meshes, index);
+        let reading = accuracy_of(sim, &error, (!t.stability_only()).then_some(meshes), index);
         // A frame the stability rule rejects is simulated again at a higher budget too, while
         // there is one (the cheap end of the ladder can gain energy on stiff springs); one that
         // misses a target, while the budget may rise.
@@ -354,13 +354,21 @@ fn step_within(
 }
 
 /// The worst structural strain and cell shear of `sim` now and the deepest any free particle is
-/// inside a collider, a shell or a character's mesh (at baked frame `index`) [m].
+/// inside a collider, a shell or a character's mesh (at baked frame `index`) [m]; with no
+/// `meshes` (a budget that answers to stability alone), no depth (0).
 fn accuracy_of(
     sim: &Simulation,
     error: &metrics::ConstraintError,
-    meshes: Shown,
+    meshes: Option<Shown>,
     index: usize,
 ) -> Reading {
+    let Some(meshes) = meshes else {
+        return Reading {
+            strain: error.solvable_strain(),
+            depth: 0.0,
+            shear: error.max_shear_deg,
+        };
+    };
     let free = sim.free_positions();
     let deepest = solid_penetrations(sim, &free)
         .into_iter()

@@ -296,6 +296,14 @@ fn run(
     }
     let kind = backend_kind(scene, targets.is_some(), &mut warnings)?;
     let mut backend = Backend::for_scene(kind, &sim, &mut warnings)?;
+    // Without targets, a budget left to drape answers to stability on the CPU (`budget`'s
+    // docs), from the level a checkpoint was at.
+    let targets = targets.or_else(|| {
+        let t = budget::Targets::stability(scene).filter(|_| !backend.is_gpu())?;
+        let level = (source.as_ref()).map_or(0, |s| s.loaded.meta.progress.budget.level);
+        t.apply(&mut sim, level.min(t.levels.len() - 1));
+        Some(t)
+    });
     if !backend.is_gpu() {
         // Only the GPU places shells from their meshes; the CPU reads the shells' own frames
         // (P: 15 MB of the mannequin's vertices no longer held).

@@ -3,12 +3,13 @@
 //! passing through itself or sinking into a collider where cloth is caught, springs the strain
 //! limit pulled back or a held end forced).
 
-use crate::report::Report;
+use crate::report::{BudgetKind, Report};
 
 /// Every warning the finished `report` calls for, in the order a user reads them: held
 /// particles inside a body, a body through itself, forced springs, a body sunk into a collider,
 /// the strain limit's work (with one, `strain_limit`), garments stretched into place by the
-/// pre-roll, and, for a bake a stretched spring stopped, its substep.
+/// pre-roll, frames a budget left to drape simulated again to keep stable, and, for a bake a
+/// stretched spring stopped, its substep.
 pub(super) fn at_the_end(report: &Report, strain_limit: Option<f32>) -> Vec<String> {
     let mut found = held_inside_warnings(report);
     found.extend(self_crossing_warnings(report));
@@ -16,6 +17,7 @@ pub(super) fn at_the_end(report: &Report, strain_limit: Option<f32>) -> Vec<Stri
     found.extend(sunk_warnings(report));
     found.extend(strain_limit.and_then(|limit| strain_limited_warning(report, limit)));
     found.extend(stretched_in_preroll_warning(report));
+    found.extend(stability_budget_warning(report));
     found.extend(substep_warning(report));
     found
 }
@@ -29,7 +31,8 @@ pub(super) fn at_the_end(report: &Report, strain_limit: Option<f32>) -> Vec<Stri
 /// frame, so a scene made at 60 fps and baked at 24 has substeps 2.5 times as long.
 fn substep_warning(report: &Report) -> Option<String> {
     let failure = report.failure.as_ref()?;
-    if report.budget.is_some() || !failure.reason.contains("stretched") {
+    let targets = (report.budget.as_ref()).is_some_and(|b| b.kind == BudgetKind::Targets);
+    if targets || !failure.reason.contains("stretched") {
         return None;
     }
     Some(format!(
@@ -39,6 +42,32 @@ fn substep_warning(report: &Report) -> Option<String> {
         report.substeps,
         report.fps,
         report.solver.iterations,
+    ))
+}
+
+/// Where a budget left to drape went above the scene's own to keep the bake stable
+/// (`bake::budget`'s stability alone): the first frame that went unstable at it, how many frames
+/// ran at a larger budget and the largest. The bake is whole, but its cost and its frames are
+/// not what the scene's budget gives, and a user who wants either fixed gives the budget.
+fn stability_budget_warning(report: &Report) -> Option<String> {
+    let budget = (report.budget.as_ref()).filter(|b| b.kind == BudgetKind::Stability)?;
+    let own = *budget.levels.first()?;
+    let raised: Vec<_> = (budget.per_frame.iter())
+        .filter(|f| (f.substeps, f.iterations) != own)
+        .collect();
+    let first = budget.per_frame.iter().find(|f| f.attempts > 1)?;
+    let most = (raised.iter())
+        .map(|f| (f.substeps, f.iterations))
+        .max_by_key(|&(s, i)| s * i)?;
+    Some(format!(
+        "frame {} went unstable at the scene's budget ({} substeps × {} iterations a frame, drape's defaults for what the scene leaves out) and was simulated again at a larger one; {} of the {} frames ran above it, up to {} × {} (budget.per_frame). Give `timestep` (or `substeps`) and `solver.iterations` for a budget that stays fixed (a bake then stops where it goes unstable), or an accuracy target",
+        first.frame,
+        own.0,
+        own.1,
+        raised.len(),
+        budget.per_frame.len(),
+        most.0,
+        most.1,
     ))
 }
 

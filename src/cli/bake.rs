@@ -3,6 +3,7 @@
 use super::args::{BackendArg, BakeArgs, GltfArg};
 use super::resolve;
 use drape::bake::{bake, BakeOptions, Resume};
+use drape::report::BudgetKind;
 use drape::scene::{BackendKind, GltfOutput};
 use std::path::PathBuf;
 
@@ -263,7 +264,9 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
         );
         return Ok(128 + i.signal);
     }
-    if let Some(b) = r.budget.as_ref().filter(|b| !b.met) {
+    // A budget that answers to stability alone misses only where the bake stopped (below).
+    let targets = r.budget.as_ref().filter(|b| b.kind == BudgetKind::Targets);
+    if let Some(b) = targets.filter(|b| !b.met) {
         let (s, i) = b.levels[b.levels.len() - 1];
         let kept = match b.kept_missing {
             0 => String::new(),

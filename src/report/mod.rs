@@ -478,9 +478,22 @@ pub struct FrameBudget {
     pub kept_missing: bool,
 }
 
+/// What moves a bake's budget.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum BudgetKind {
+    /// The scene's accuracy targets (`accuracy`, `--max-strain` and the like).
+    Targets,
+    /// Stability alone: a scene without targets that leaves drape its substeps or iterations
+    /// keeps its budget, and only a frame that goes unstable is simulated again at a larger one.
+    Stability,
+}
+
 /// The report's account of the budget.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct BudgetReport {
+    /// What moves it.
+    pub kind: BudgetKind,
     /// The targets.
     pub max_strain: Option<f64>,
     pub max_penetration: Option<f32>,
