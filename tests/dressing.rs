@@ -420,7 +420,7 @@ fn the_shipped_skirt_and_top_walk_with_no_particle_deeper_than_half_a_shell_radi
         let stretched = report
             .warnings
             .iter()
-            .find(|w| w.contains("pre-roll stretched"));
+            .find(|w| w.contains("pre-roll stretched") || w.contains("carries two neighbours"));
         assert!(stretched.is_none(), "{name}: {stretched:?}");
         let preroll = report.preroll.as_ref().expect("a pre-roll");
         assert!(
@@ -429,6 +429,26 @@ fn the_shipped_skirt_and_top_walk_with_no_particle_deeper_than_half_a_shell_radi
             preroll.max_strain
         );
     }
+}
+
+/// `skirt_walk`'s skirt widened 1.5 × about his axis (without the arms' offsets): its
+/// waistband, 5 to 8 cm out, is bound partly to his arms, which carry neighbouring particles of
+/// it apart as they swing, and the bake says so before it simulates (its first frame).
+#[test]
+fn a_waistband_bound_to_his_arms_is_warned_of() {
+    let dir = common::temp_dir();
+    let (v, t) = common::read_obj(&root().join("garments/cesium_skirt.obj"));
+    let wide: Vec<Vec3> = v.iter().map(|p| Vec3::new(1.5 * p.x, p.y, 1.5 * p.z)).collect();
+    let obj = dir.path().join("skirt_wide.obj");
+    common::write_obj(&obj, &wide, &t);
+    let mut scene = drape::scene::Scene::load(&root().join("scenes/skirt_walk.json")).unwrap();
+    scene.garments[0].mesh = Some(obj.display().to_string());
+    scene.characters[0].joint_offsets.clear();
+    scene.frames = 1;
+    let report = bake_quietly(scene, dir.path(), "wide");
+    let warned = (report.warnings.iter()).find(|w| w.contains("carries two neighbours"));
+    let warned = warned.unwrap_or_else(|| panic!("{:?}", report.warnings));
+    assert!(warned.contains("garment \"skirt\"'s attachment"), "{warned}");
 }
 
 #[test]

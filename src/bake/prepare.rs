@@ -59,7 +59,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
         let bound = sim
             .drivers
             .attachments
-            .bind_skins(skins)
+            .bind_skins(skins, scene.frame_start)
             .map_err(|reason| Error::InvalidField {
                 file: file.to_string(),
                 field: "garments[].attachments".into(),
