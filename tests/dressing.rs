@@ -438,7 +438,10 @@ fn the_shipped_skirt_and_top_walk_with_no_particle_deeper_than_half_a_shell_radi
 fn a_waistband_bound_to_his_arms_is_warned_of() {
     let dir = common::temp_dir();
     let (v, t) = common::read_obj(&root().join("garments/cesium_skirt.obj"));
-    let wide: Vec<Vec3> = v.iter().map(|p| Vec3::new(1.5 * p.x, p.y, 1.5 * p.z)).collect();
+    let wide: Vec<Vec3> = v
+        .iter()
+        .map(|p| Vec3::new(1.5 * p.x, p.y, 1.5 * p.z))
+        .collect();
     let obj = dir.path().join("skirt_wide.obj");
     common::write_obj(&obj, &wide, &t);
     let mut scene = drape::scene::Scene::load(&root().join("scenes/skirt_walk.json")).unwrap();
@@ -448,7 +451,10 @@ fn a_waistband_bound_to_his_arms_is_warned_of() {
     let report = bake_quietly(scene, dir.path(), "wide");
     let warned = (report.warnings.iter()).find(|w| w.contains("carries two neighbours"));
     let warned = warned.unwrap_or_else(|| panic!("{:?}", report.warnings));
-    assert!(warned.contains("garment \"skirt\"'s attachment"), "{warned}");
+    assert!(
+        warned.contains("garment \"skirt\"'s attachment"),
+        "{warned}"
+    );
 }
 
 #[test]

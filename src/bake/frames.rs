@@ -58,7 +58,8 @@ pub fn run(
         // The shot's number of this frame (`frame_start`): what files and the report show.
         let frame = report.frame_start + baked - 1;
         let start = Instant::now();
-        match targets {
+        let stop = || super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed) != 0;
+        let whole = match targets {
             Some(t) => step_within(
                 t,
                 sim,
@@ -66,18 +67,17 @@ pub fn run(
                 (meshes, &probes),
                 (frame, baked - 1),
                 &mut progress,
+                &stop,
             )?,
-            None => {
-                let stop = || super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed) != 0;
-                if !backend.step_frame_or_stop(sim, &stop)? {
-                    // Stopped inside the frame: the simulation is back where it started.
-                    report.interrupted = Some(crate::report::Interruption {
-                        signal: super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed),
-                        after_frame: frame.saturating_sub(1),
-                    });
-                    break;
-                }
-            }
+            None => backend.step_frame_or_stop(sim, &stop)?,
+        };
+        if !whole {
+            // Stopped inside the frame: the simulation is back where it started.
+            report.interrupted = Some(crate::report::Interruption {
+                signal: super::INTERRUPT.load(std::sync::atomic::Ordering::Relaxed),
+                after_frame: frame.saturating_sub(1),
+            });
+            break;
         }
         if let Some(bytes) = backend.uploaded_last_frame() {
             progress.uploaded += bytes;
@@ -275,7 +275,8 @@ impl Measured {
 /// Steps frame `frame` (baked frame `index`) within the accuracy `targets`: simulated again
 /// from its start state at the next budget while it misses one (up to the ladder's cap); the
 /// next frame's budget one higher when this one came close, one lower after a calm stretch.
-/// Records the frame's budget in `progress`.
+/// Records the frame's budget in `progress`. False when `stop` stopped it inside the frame:
+/// then the simulation and the budget are back where the frame started.
 fn step_within(
     t: &Targets,
     sim: &mut Simulation,
@@ -283,9 +284,11 @@ fn step_within(
     meshes: Shown,
     (frame, index): (u32, u32),
     progress: &mut Progress,
-) -> Result<()> {
+    stop: &dyn Fn() -> bool,
+) -> Result<bool> {
     let index = index as usize;
     let before = sim.snapshot();
+    let budget_before = progress.budget.clone();
     let mut attempts = 1;
     let mut why = std::mem::take(&mut progress.budget.pending_why);
     let mut kept_missing = false;
@@ -293,7 +296,13 @@ fn step_within(
         if progress.budget.settle > 0 {
             sim.settle_frame();
         }
-        backend.step_frame(sim)?;
+        if !backend.step_frame_or_stop(sim, stop)? {
+            sim.restore(&before)
+                .expect("a simulation takes its own snapshot");
+            progress.budget = budget_before;
+            t.apply(sim, progress.budget.level);
+            return Ok(false);
+        }
         let error = sim.constraint_error();
         let reading = accuracy_of(sim, &error, (!t.stability_only()).then_some(meshes), index);
         // A frame the stability rule rejects is simulated again at a higher budget too, while
@@ -350,7 +359,7 @@ fn step_within(
         t.apply(sim, progress.budget.level);
         progress.budget.pending_why = why;
     }
-    Ok(())
+    Ok(true)
 }
 
 /// The worst structural strain and cell shear of `sim` now and the deepest any free particle is
