@@ -432,3 +432,54 @@ fn a_stable_bake_that_leaves_drape_its_budget_is_the_bake_at_that_budget() {
         left.warnings
     );
 }
+
+/// A scene that does not integrate (scene E: a sheet enlarged 5 × relaxing to its rest shape)
+/// leaves the stability rule nothing to judge by its strain: left drape its substeps and
+/// iterations, it bakes at its own budget, once a frame, like the same budget given.
+#[test]
+fn a_scene_that_does_not_integrate_keeps_its_budget_left_to_drape() {
+    let sheet = |budget: &str| {
+        common::scene(&format!(
+            r#"{{ "frames": 3, "integrator": "none", "gravity": [0, 0, 0], "backend": "cpu"{budget},
+                  "output": {{ "obj": false, "gltf": "none" }},
+                  "garments": [{{ "resolution": [12, 12], "size": [1, 1], "initial_stretch": 5 }}] }}"#
+        ))
+    };
+    let left = run(&sheet(""));
+    let given = run(&sheet(
+        r#", "substeps": 10, "solver": { "iterations": 10 }"#,
+    ));
+    assert!(left.stable && given.stable);
+    assert_eq!(left.frames_hash, given.frames_hash);
+    let b = left.budget.as_ref().unwrap();
+    assert!(
+        (b.per_frame.iter()).all(|f| (f.substeps, f.iterations, f.attempts) == (10, 10, 1)),
+        "{:?}",
+        b.per_frame
+    );
+}
+
+/// A checkpoint of a bake that left drape its iterations does not resume a bake that gives
+/// them (the same number, but a budget that stays fixed): the two bakes differ from the first
+/// frame that goes unstable.
+#[test]
+fn a_checkpoint_of_a_budget_left_to_drape_does_not_resume_a_fixed_one() {
+    let dir = common::temp_dir();
+    let d = dir.path();
+    common::write(d, "left.json", &dropped_on_a_ball(""));
+    let first = common::drape(d, &["bake", "left.json", "--out", "out", "--until", "3"]);
+    assert_eq!(first.status.code(), Some(0), "{}", common::stderr(&first));
+    let args = [
+        "bake",
+        "left.json",
+        "--out",
+        "out",
+        "--resume",
+        "--iterations",
+        "10",
+    ];
+    let fixed = common::drape(d, &args);
+    let err = common::stderr(&fixed);
+    assert_eq!(fixed.status.code(), Some(2), "{err}");
+    assert!(err.contains("solver.iterations_left_to_drape"), "{err}");
+}

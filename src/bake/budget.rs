@@ -23,11 +23,11 @@
 //!
 //! Without targets, a bake on the CPU whose scene leaves drape its substeps or its iterations
 //! starts at the scene's budget (drape's defaults for what it leaves out) and answers to the
-//! stability rule alone ([`Targets::stability`]): its one target is the strain that stops a bake
-//! ([`STABLE_STRAIN`]), so a frame that goes unstable is simulated again at the next level of
-//! the ladder, and frames at half that strain lower the budget again, never below the scene's.
-//! No frame raises the next one's budget ahead of a miss (cloth pinched or caught keeps its
-//! strain at any budget: [`Targets::close`]). A budget left to drape should not end a bake that a
+//! stability rule alone ([`Targets::stability`]): a frame the rule rejects is simulated again at
+//! the next level of the ladder (and the three frames after a raise settle, as with targets),
+//! and [`CALM_FRAMES`] frames in a row at half the rule's strain ([`STABLE_STRAIN`]) or less
+//! lower the budget a level, never below the scene's. No frame raises the next one's budget
+//! ahead of a miss (cloth pinched or caught keeps its strain at any budget: [`Targets::close`]). A budget left to drape should not end a bake that a
 //! larger one would carry; a scene that gives both keeps them, and a bake then stops where it
 //! goes unstable.
 
@@ -49,10 +49,9 @@ pub const LADDER: [(u32, u32); 8] = [
     (80, 20),
 ];
 
-/// The strain a budget that answers to stability alone holds frames under: the stability rule's
-/// (`scenes.md`: a spring stretched past 100 % stops a bake). As with a target, a frame over it
-/// is simulated again at a larger budget, and frames at half of it lower the budget again, down
-/// to the scene's own.
+/// The stability rule's strain (`scenes.md`: a spring stretched past 100 % stops a bake). A
+/// budget that answers to stability alone lowers itself after [`CALM_FRAMES`] frames in a row
+/// at half of it or less, down to the scene's own.
 pub const STABLE_STRAIN: f64 = 1.0;
 
 /// Frames in a row with a large margin after which a lower budget is tried.
@@ -242,9 +241,9 @@ pub struct Targets {
     pub passes: bool,
     /// What moves the budget: the targets above, or stability alone (then there are none).
     pub kind: BudgetKind,
-    /// The collision passes of the first level, when they are the scene's own (stability
-    /// alone: its first level is the scene's budget as it stands).
-    pub first_passes: Option<u32>,
+    /// Collision passes that stay the scene's own at every level (stability alone), instead of
+    /// following the iterations.
+    pub fixed_passes: Option<u32>,
 }
 
 impl Targets {
@@ -266,14 +265,15 @@ impl Targets {
             levels,
             passes: scene.solver.contact_passes > 1,
             kind: BudgetKind::Targets,
-            first_passes: None,
+            fixed_passes: None,
         })
     }
 
     /// Stability alone, for a bake on the CPU of a scene without `accuracy` that leaves drape
-    /// its substeps or its iterations (see the module's docs): the one target [`STABLE_STRAIN`];
-    /// the first level the scene's budget as it stands, the others the ladder's levels above it
-    /// (what the scene gives stays fixed). None when the scene gives both, or has targets.
+    /// its substeps or its iterations (see the module's docs): no targets (the stability rule
+    /// judges each frame), the first level the scene's budget as it stands, the others the
+    /// ladder's levels above it (what the scene gives stays fixed, its collision passes too).
+    /// None when the scene gives both, or has targets.
     pub fn stability(scene: &Scene) -> Option<Targets> {
         let fixed_substeps = scene.substeps.is_some() || scene.timestep.is_some();
         let fixed_iterations = scene.iterations_given;
@@ -293,23 +293,23 @@ impl Targets {
             }
         }
         (levels.len() > 1).then_some(Targets {
-            max_strain: Some(STABLE_STRAIN),
+            max_strain: None,
             max_penetration: None,
             max_shear: None,
             levels,
             passes: scene.solver.contact_passes > 1,
             kind: BudgetKind::Stability,
-            first_passes: Some(scene.solver.contact_passes),
+            fixed_passes: Some(scene.solver.contact_passes),
         })
     }
 
     /// Puts `sim` on `level`'s budget.
     pub fn apply(&self, sim: &mut Simulation, level: usize) {
         let (substeps, iterations) = self.levels[level];
-        let passes = match self.first_passes {
-            Some(passes) if level == 0 => passes,
-            _ if self.passes => iterations,
-            _ => 1,
+        let passes = match self.fixed_passes {
+            Some(passes) => passes.min(iterations),
+            None if self.passes => iterations,
+            None => 1,
         };
         sim.set_budget(substeps, iterations, passes);
     }
@@ -330,13 +330,6 @@ impl Targets {
             return Some("the frame went unstable".into());
         }
         if let Some(t) = self.max_strain.filter(|&t| strain > t) {
-            if self.stability_only() {
-                return Some(format!(
-                    "a spring stretched {:.0} % (the stability rule's limit is {:.0} %)",
-                    strain * 100.0,
-                    t * 100.0
-                ));
-            }
             return Some(format!(
                 "strain {:.2} % over the target {:.2} %",
                 strain * 100.0,
@@ -387,8 +380,12 @@ impl Targets {
             || self.max_shear.is_some_and(|t| r.shear > 0.75 * t)
     }
 
-    /// True when a frame that reads `r` met every target with half the margin to spare.
+    /// True when a frame that reads `r` met every target with half the margin to spare (with
+    /// stability alone: at half the stability rule's strain or less).
     pub fn calm(&self, r: Reading) -> bool {
+        if self.stability_only() {
+            return r.strain <= 0.5 * STABLE_STRAIN;
+        }
         self.max_strain.is_none_or(|t| r.strain <= 0.5 * t)
             && self.max_penetration.is_none_or(|t| r.depth <= 0.5 * t)
             && self.max_shear.is_none_or(|t| r.shear <= 0.5 * t)
@@ -428,7 +425,7 @@ mod tests {
             levels: LADDER.to_vec(),
             passes: false,
             kind: BudgetKind::Targets,
-            first_passes: None,
+            fixed_passes: None,
         }
     }
 

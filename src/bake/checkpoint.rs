@@ -59,7 +59,8 @@ pub struct Progress {
     pub initial_energy: Energy,
     /// The report's per-frame fields so far.
     pub measured: Measured,
-    /// With accuracy targets: the budget's state and every frame's budget so far.
+    /// With accuracy targets, or a budget left to drape: the budget's state and every frame's
+    /// budget so far.
     pub budget: super::budget::BudgetState,
     pub budget_frames: Vec<super::budget::FrameBudget>,
 }
@@ -140,6 +141,13 @@ pub fn canonical_scene(scene: &Scene) -> serde_json::Value {
     if let Some(map) = value.as_object_mut() {
         for key in ["frames", "output", "backend", "checkpoint_every"] {
             map.remove(key);
+        }
+        // `solver.iterations` reads the same given or not, but left out it leaves drape the
+        // budget (`bake::budget`): only then marked, so checkpoints of scenes that give it, made
+        // before the mark, still resume.
+        let solver = map.get_mut("solver").and_then(|s| s.as_object_mut());
+        if let Some(solver) = solver.filter(|_| !scene.iterations_given) {
+            solver.insert("iterations_left_to_drape".into(), true.into());
         }
     }
     prune(&mut value);

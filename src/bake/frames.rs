@@ -228,7 +228,8 @@ pub struct Out<'a> {
     pub meshes: &'a mut BakeMeshes,
     pub exports: &'a mut Exports,
     pub checkpoints: Option<&'a mut checkpoint::Writer>,
-    /// Accuracy targets that choose each frame's budget.
+    /// Accuracy targets (or the stability rule alone, for a budget left to drape) that choose
+    /// each frame's budget.
     pub targets: Option<&'a Targets>,
 }
 

@@ -17,8 +17,8 @@ pub struct Prepared {
     pub characters: Vec<CharacterReport>,
     /// The characters' meshes over frames 0…N (those whose topology holds), for the exports.
     pub character_meshes: Vec<AnimatedMesh>,
-    /// What the report warns of (skin attachments bound far from the skin, sheets that
-    /// self-collide with nothing holding their cells square).
+    /// What the report warns of (skin attachments whose skin carries neighbours apart, sheets
+    /// that self-collide with nothing holding their cells square).
     pub warnings: Vec<String>,
 }
 

@@ -31,9 +31,20 @@ pub(super) fn at_the_end(report: &Report, strain_limit: Option<f32>) -> Vec<Stri
 /// frame, so a scene made at 60 fps and baked at 24 has substeps 2.5 times as long.
 fn substep_warning(report: &Report) -> Option<String> {
     let failure = report.failure.as_ref()?;
-    let targets = (report.budget.as_ref()).is_some_and(|b| b.kind == BudgetKind::Targets);
-    if targets || !failure.reason.contains("stretched") {
+    if !failure.reason.contains("stretched") {
         return None;
+    }
+    match &report.budget {
+        Some(b) if b.kind == BudgetKind::Targets => return None,
+        Some(b) => {
+            // Stability alone: drape climbed the ladder for the frame, to its cap.
+            let (substeps, iterations) = *b.levels.last()?;
+            return Some(format!(
+                "frame {} stopped the bake with a spring stretched past 100 % at the largest budget drape tries for a scene that leaves it the budget ({substeps} substeps × {iterations} iterations a frame): what holds that spring is likelier the scene than the budget (cloth caught between body parts, a clip that throws it); the warnings above may name it",
+                failure.frame
+            ));
+        }
+        None => {}
     }
     Some(format!(
         "frame {} stopped the bake with a spring stretched past 100 %, at substeps of {:.2} ms ({} a frame at {} fps) with {} solver iterations each: cloth landing on a body or pulled by it moves farther in a substep than that many iterations carry the springs' pull across the garment (`poncho_walk` reaches 28 % with 0.83 ms substeps and stops with 2.08 ms ones). Unless a warning above names another cause, raise `substeps` (they are per frame: a scene made at 60 fps needs 60 / fps times as many at a lower frame rate) or `solver.iterations`, or give an accuracy target (`--max-strain 0.5`) and drape raises them in the frames that need it",

@@ -121,7 +121,8 @@ pub struct Report {
     /// Set when the bake continued from a checkpoint: the frames up to it were replayed from
     /// that bake's frame log, not simulated again.
     pub resumed: Option<Resumed>,
-    /// With accuracy targets: the budget chosen for every frame, why, and what it reached.
+    /// With accuracy targets, or a budget left to drape on the CPU (`bake::budget`): the budget
+    /// chosen for every frame, why, and what it reached.
     pub budget: Option<BudgetReport>,
     /// Checkpoints this run wrote into `checkpoints/` (none when `checkpoint_every` is 0).
     pub checkpoints: Option<CheckpointReport>,

@@ -466,7 +466,8 @@ impl Attachments {
         }
         let mut worst: Option<Spread> = None;
         let mut spread = vec![false; rests.len()];
-        for frame in 0..skin.frames.len() {
+        // The frames the bake shows (the first skin frame is its start, before them).
+        for frame in 1..skin.frames.len() {
             let targets: Vec<Vec3> = (attached.iter())
                 .map(|a| self.position(a, frame as f32, 1.0))
                 .collect();
