@@ -349,6 +349,16 @@ fn a_budget_left_to_drape_takes_a_frame_that_goes_unstable_again_at_a_larger_one
     common::write(d, "left.json", &dropped_on_a_ball(""));
     let given = r#", "substeps": 10, "solver": { "iterations": 10 }"#;
     common::write(d, "given.json", &dropped_on_a_ball(given));
+    // `drape inspect` says which of the two leaves drape its budget.
+    for (file, left) in [("left.json", true), ("given.json", false)] {
+        let out = common::drape(d, &["inspect", file]);
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        assert_eq!(
+            text.contains("budget left to drape"),
+            left,
+            "{file}: {text}"
+        );
+    }
     let fixed = common::drape(d, &["bake", "given.json", "--out", "fixed"]);
     assert_eq!(fixed.status.code(), Some(1), "{}", common::stderr(&fixed));
     let left = common::drape(d, &["bake", "left.json", "--out", "left"]);

@@ -46,6 +46,12 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
         s.contact_passes,
         if s.contact_passes == 1 { "" } else { "es" }
     );
+    if let Some(t) = drape::bake::budget::Targets::stability(&scene) {
+        let (top_s, top_i) = t.levels[t.levels.len() - 1];
+        println!(
+            "  budget left to drape (no accuracy targets, and the scene leaves out its substeps or iterations): on the CPU a frame that goes unstable is simulated again at a larger one, up to {top_s} × {top_i}"
+        );
+    }
     print_garments(&garments);
     for line in level_of_detail(&scene, &garments) {
         println!("  {line}");
