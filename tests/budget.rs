@@ -383,11 +383,10 @@ fn a_budget_left_to_drape_takes_a_frame_that_goes_unstable_again_at_a_larger_one
         .map(|f| f["frame"].as_u64().unwrap())
         .collect();
     assert_eq!(retried.first(), Some(&failed), "{frames:?}");
+    // Raised by substeps: what the scene leaves out first.
     let raised = &frames[failed as usize - 1];
-    assert_eq!(
-        (&raised["substeps"], &raised["iterations"]),
-        (&20.into(), &10.into())
-    );
+    assert!(raised["substeps"].as_u64().unwrap() > 10, "{raised}");
+    assert_eq!(raised["iterations"], 10);
     for f in &frames[..failed as usize - 1] {
         assert_eq!((&f["substeps"], &f["iterations"]), (&10.into(), &10.into()));
     }
