@@ -25,12 +25,11 @@
 //! starts at the scene's budget (drape's defaults for what it leaves out) and answers to the
 //! stability rule alone ([`Targets::stability`]): a frame the rule rejects is simulated again at
 //! the next of its levels, finer than the ladder's ([`STABILITY_STEPS`]; the three frames after
-//! a raise settle, as with targets),
-//! and [`CALM_FRAMES`] frames in a row at half the rule's strain ([`STABLE_STRAIN`]) or less
-//! lower the budget a level, never below the scene's. No frame raises the next one's budget
-//! ahead of a miss (cloth pinched or caught keeps its strain at any budget: [`Targets::close`]). A budget left to drape should not end a bake that a
-//! larger one would carry; a scene that gives both keeps them, and a bake then stops where it
-//! goes unstable.
+//! a raise settle, as with targets), and [`CALM_FRAMES`] frames in a row at half the rule's
+//! strain ([`STABLE_STRAIN`]) or less lower the budget a level, never below the scene's. No frame raises the next one's budget
+//! ahead of a miss (cloth pinched or caught keeps its strain at any budget: [`Targets::close`]).
+//! A budget left to drape should not end a bake that a larger one would carry; a scene that
+//! gives both keeps them, and a bake then stops where it goes unstable.
 
 pub use crate::report::{BudgetKind, BudgetReport, FrameBudget};
 use crate::scene::Scene;
@@ -185,15 +184,8 @@ impl BudgetState {
         self.capped = (0, 0.0);
         if met && t.close(r) && self.level < top && self.hold == 0 {
             self.raise();
-            return Some(
-                match t.kind {
-                    BudgetKind::Targets => {
-                        "the last frame came within a quarter of a target: raised"
-                    }
-                    BudgetKind::Stability => unreachable!("stability alone raises no budget ahead"),
-                }
-                .into(),
-            );
+            // Never with stability alone: `close` is false there.
+            return Some("the last frame came within a quarter of a target: raised".into());
         }
         if !t.calm(r) {
             self.calm = 0;
