@@ -86,6 +86,15 @@ impl Backend {
         }
     }
 
+    /// Takes `sim` as it is, after a frame's start was put back into it at another budget (the
+    /// GPU uploads its state, nearby lists and budget; nothing on the CPU).
+    pub fn upload(&mut self, sim: &Simulation) -> Result<()> {
+        match self {
+            Backend::Cpu => Ok(()),
+            Backend::Gpu(g) => g.take(sim),
+        }
+    }
+
     /// Brings into `sim` what only the backend kept and a checkpoint needs (the GPU's nearby
     /// shell lists; nothing on the CPU).
     pub fn sync_for_checkpoint(&mut self, sim: &mut Simulation) -> Result<()> {

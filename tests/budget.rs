@@ -84,6 +84,41 @@ fn substeps_the_scene_gives_stay_fixed() {
         .all(|f| f.substeps == 7));
 }
 
+/// Accuracy targets on the GPU backend (lavapipe here and in CI): every frame meets its target,
+/// frames the target rejects are simulated again on the device at a larger budget, and the
+/// choices are the same on another run.
+#[test]
+fn on_the_gpu_every_frame_meets_its_target() {
+    if common::gpu_context().is_none() {
+        return;
+    }
+    let mut scene = sheet(r#"{ "max_strain": 0.01 }"#, "");
+    scene.backend = drape::scene::BackendKind::Gpu;
+    let report = run(&scene);
+    assert_eq!(report.backend.kind, "gpu");
+    let b = report.budget.as_ref().unwrap();
+    assert!(b.met, "{:?}", b.per_frame);
+    assert_eq!(b.per_frame.len(), 24);
+    assert!(
+        b.per_frame.iter().all(|f| f.max_strain <= 0.01),
+        "{:?}",
+        b.per_frame
+    );
+    assert!(
+        b.per_frame.iter().any(|f| f.attempts > 1),
+        "{:?}",
+        b.per_frame
+    );
+    let cheapest = drape::bake::budget::LADDER[0];
+    assert!(b
+        .per_frame
+        .iter()
+        .any(|f| (f.substeps, f.iterations) != cheapest));
+    let again = run(&scene);
+    assert_eq!(again.frames_hash, report.frames_hash);
+    assert_eq!(again.budget, report.budget);
+}
+
 #[test]
 fn a_target_no_budget_meets_fails_with_the_frames_kept() {
     let dir = common::temp_dir();
@@ -326,10 +361,11 @@ fn a_frame_the_stability_rule_rejects_is_simulated_again_at_a_higher_budget() {
 
 /// A 32 × 32 sheet dropped from 2 m onto a ball 0.2 m across at 24 fps, caught at its middle
 /// while the rest falls on: at drape's default budget (10 substeps × 10 iterations a frame) a
-/// spring passes 100 % at frame 18. `budget` is inserted as top-level fields.
-fn dropped_on_a_ball(budget: &str) -> String {
+/// spring passes 100 % at frame 18 (on either backend). `budget` is inserted as top-level
+/// fields.
+fn dropped_on_a_ball(backend: &str, budget: &str) -> String {
     format!(
-        r#"{{ "fps": 24, "frames": 30, "backend": "cpu"{budget},
+        r#"{{ "fps": 24, "frames": 30, "backend": "{backend}"{budget},
               "output": {{ "gltf": "none" }},
               "garments": [{{ "name": "sheet", "resolution": [32, 32], "size": [1.2, 1.2],
                               "position": [0, 2, 0] }}],
@@ -344,11 +380,27 @@ fn dropped_on_a_ball(budget: &str) -> String {
 /// keeps it and stops.
 #[test]
 fn a_budget_left_to_drape_takes_a_frame_that_goes_unstable_again_at_a_larger_one() {
+    left_to_drape_takes_an_unstable_frame_again("cpu");
+}
+
+/// The same on the GPU backend (lavapipe here and in CI), which puts the frame's start back on
+/// the device at the larger budget.
+#[test]
+fn on_the_gpu_a_budget_left_to_drape_takes_an_unstable_frame_again() {
+    if common::gpu_context().is_none() {
+        return;
+    }
+    left_to_drape_takes_an_unstable_frame_again("gpu");
+}
+
+/// See [`a_budget_left_to_drape_takes_a_frame_that_goes_unstable_again_at_a_larger_one`], on
+/// `backend`.
+fn left_to_drape_takes_an_unstable_frame_again(backend: &str) {
     let dir = common::temp_dir();
     let d = dir.path();
-    common::write(d, "left.json", &dropped_on_a_ball(""));
+    common::write(d, "left.json", &dropped_on_a_ball(backend, ""));
     let given = r#", "substeps": 10, "solver": { "iterations": 10 }"#;
-    common::write(d, "given.json", &dropped_on_a_ball(given));
+    common::write(d, "given.json", &dropped_on_a_ball(backend, given));
     // `drape inspect` says which of the two leaves drape its budget.
     for (file, left) in [("left.json", true), ("given.json", false)] {
         let out = common::drape(d, &["inspect", file]);
@@ -475,7 +527,7 @@ fn a_scene_that_does_not_integrate_keeps_its_budget_left_to_drape() {
 fn a_checkpoint_of_a_budget_left_to_drape_does_not_resume_a_fixed_one() {
     let dir = common::temp_dir();
     let d = dir.path();
-    common::write(d, "left.json", &dropped_on_a_ball(""));
+    common::write(d, "left.json", &dropped_on_a_ball("cpu", ""));
     let first = common::drape(d, &["bake", "left.json", "--out", "out", "--until", "3"]);
     assert_eq!(first.status.code(), Some(0), "{}", common::stderr(&first));
     let args = [

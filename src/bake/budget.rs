@@ -21,15 +21,19 @@
 //! leaves out); collision passes follow the iterations when the scene has them on. Every
 //! decision depends only on the frames, so a bake gives the same frames every time.
 //!
-//! Without targets, a bake on the CPU whose scene leaves drape its substeps or its iterations
+//! Without targets, a bake whose scene leaves drape its substeps or its iterations
 //! starts at the scene's budget (drape's defaults for what it leaves out) and answers to the
 //! stability rule alone ([`Targets::stability`]): a frame the rule rejects is simulated again at
 //! the next of its levels, finer than the ladder's ([`STABILITY_STEPS`]; the three frames after
 //! a raise settle, as with targets), and [`CALM_FRAMES`] frames in a row at half the rule's
-//! strain ([`STABLE_STRAIN`]) or less lower the budget a level, never below the scene's. No frame raises the next one's budget
-//! ahead of a miss (cloth pinched or caught keeps its strain at any budget: [`Targets::close`]).
-//! A budget left to drape should not end a bake that a larger one would carry; a scene that
-//! gives both keeps them, and a bake then stops where it goes unstable.
+//! strain ([`STABLE_STRAIN`]) or less lower the budget a level, never below the scene's. No
+//! frame raises the next one's budget ahead of a miss (cloth pinched or caught keeps its strain
+//! at any budget: [`Targets::close`]). A budget left to drape should not end a bake that a
+//! larger one would carry; a scene that gives both keeps them, and a bake then stops where it
+//! goes unstable.
+//!
+//! Both backends: the GPU reads a frame's start back (with its nearby shell lists) and takes
+//! each new budget with the state it starts from; it does not settle the frames after a raise.
 
 pub use crate::report::{BudgetKind, BudgetReport, FrameBudget};
 use crate::scene::Scene;
@@ -270,7 +274,7 @@ impl Targets {
         })
     }
 
-    /// Stability alone, for a bake on the CPU of a scene without `accuracy` that leaves drape
+    /// Stability alone, for a bake of a scene without `accuracy` that leaves drape
     /// its substeps or its iterations (see the module's docs): no targets (the stability rule
     /// judges each frame), the first level the scene's budget as it stands, the others
     /// [`STABILITY_STEPS`] times what it leaves out (its substeps, else its iterations), and at

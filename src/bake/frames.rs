@@ -277,7 +277,9 @@ impl Measured {
 /// from its start state at the next budget while it misses one (up to the ladder's cap); the
 /// next frame's budget one higher when this one came close, one lower after a calm stretch.
 /// Records the frame's budget in `progress`. False when `stop` stopped it inside the frame:
-/// then the simulation and the budget are back where the frame started.
+/// then the simulation and the budget are back where the frame started. On the GPU the frame's
+/// start (its nearby shell lists too) is read back first, and each budget goes up with the
+/// state it starts from.
 fn step_within(
     t: &Targets,
     sim: &mut Simulation,
@@ -288,13 +290,17 @@ fn step_within(
     stop: &dyn Fn() -> bool,
 ) -> Result<bool> {
     let index = index as usize;
+    // The GPU keeps the nearby shell lists the next frame starts from: read back with its start.
+    backend.sync_for_checkpoint(sim)?;
     let before = sim.snapshot();
     let budget_before = progress.budget.clone();
     let mut attempts = 1;
     let mut why = std::mem::take(&mut progress.budget.pending_why);
     let mut kept_missing = false;
     let reading = loop {
-        if progress.budget.settle > 0 {
+        // The GPU does not cap a frame's kinetic energy substep by substep: there the frames
+        // after a raise run unsettled.
+        if progress.budget.settle > 0 && !backend.is_gpu() {
             sim.settle_frame();
         }
         if !backend.step_frame_or_stop(sim, stop)? {
@@ -302,6 +308,7 @@ fn step_within(
                 .expect("a simulation takes its own snapshot");
             progress.budget = budget_before;
             t.apply(sim, progress.budget.level);
+            backend.upload(sim)?;
             return Ok(false);
         }
         let error = sim.constraint_error();
@@ -331,6 +338,8 @@ fn step_within(
                 progress.budget.raise();
                 kept_missing = false;
                 t.apply(sim, progress.budget.level);
+                // The GPU starts the frame again from the state put back, at the new budget.
+                backend.upload(sim)?;
                 let (s, i) = t.levels[progress.budget.level];
                 why = format!("{reason}: raised to {s} substeps × {i} iterations");
                 attempts += 1;
@@ -358,6 +367,8 @@ fn step_within(
     });
     if let Some(why) = progress.budget.after_frame(t, reading) {
         t.apply(sim, progress.budget.level);
+        // The GPU takes the next frames' budget (and keeps its nearby lists).
+        backend.reload(sim)?;
         progress.budget.pending_why = why;
     }
     Ok(true)

@@ -111,8 +111,6 @@ pub fn bake(scene: &Scene, options: &BakeOptions) -> Result<Bake> {
         .map(|n| format!("--threads {n} is more than this machine's {cores} cores: using {cores}"));
     let pool = thread_pool(options.threads.map(|n| n.min(cores)))?;
     check_frame_flags(scene, options)?;
-    // A backend the scene refuses is refused before anything is written.
-    backend_kind(scene, budget::Targets::of(scene).is_some(), &mut Vec::new())?;
     let staging = if options.resume == Resume::No {
         Staging::new(&options.out)?
     } else {
@@ -278,7 +276,9 @@ fn run(
     if source.is_none() && !sim.drivers.shells.is_empty() {
         report.clean_start = Some(dress::clean_start(&mut sim, &meshes, &scene.garments));
     }
-    let targets = budget::Targets::of(scene);
+    // Accuracy targets, or without them a budget left to drape, which answers to the
+    // stability rule alone (`budget`'s docs).
+    let targets = budget::Targets::of(scene).or_else(|| budget::Targets::stability(scene));
     if let Some(t) = &targets {
         // The budget the frame after the checkpoint starts at (the cheapest on a fresh bake).
         let level = source
@@ -294,16 +294,7 @@ fn run(
                 reason: format!("does not fit the scene: {reason}"),
             })?;
     }
-    let kind = backend_kind(scene, targets.is_some(), &mut warnings)?;
-    let mut backend = Backend::for_scene(kind, &sim, &mut warnings)?;
-    // Without targets, a budget left to drape answers to stability on the CPU (`budget`'s
-    // docs), from the level a checkpoint was at.
-    let targets = targets.or_else(|| {
-        let t = budget::Targets::stability(scene).filter(|_| !backend.is_gpu())?;
-        let level = (source.as_ref()).map_or(0, |s| s.loaded.meta.progress.budget.level);
-        t.apply(&mut sim, level.min(t.levels.len() - 1));
-        Some(t)
-    });
+    let mut backend = Backend::for_scene(scene.backend, &sim, &mut warnings)?;
     if !backend.is_gpu() {
         // Only the GPU places shells from their meshes; the CPU reads the shells' own frames
         // (P: 15 MB of the mannequin's vertices no longer held).
@@ -399,31 +390,6 @@ fn shown_scene(scene: &Scene) -> Scene {
         shown.lead_in = 0;
     }
     shown
-}
-
-/// Where a scene runs: its `backend`, except that accuracy targets (which simulate frames
-/// again on the CPU) refuse `gpu` and make `auto` the CPU, with a warning.
-fn backend_kind(
-    scene: &Scene,
-    targets: bool,
-    warnings: &mut Vec<String>,
-) -> Result<crate::scene::BackendKind> {
-    use crate::scene::BackendKind;
-    if !targets {
-        return Ok(scene.backend);
-    }
-    let why = "accuracy targets re-simulate frames on the CPU backend only";
-    match scene.backend {
-        BackendKind::Cpu => Ok(BackendKind::Cpu),
-        BackendKind::Gpu => Err(Error::InvalidArgument {
-            flag: "backend".into(),
-            reason: format!("gpu: {why}; use `cpu` or `auto`"),
-        }),
-        BackendKind::Auto => {
-            warnings.push(format!("backend auto: {why}; simulating on the CPU"));
-            Ok(BackendKind::Cpu)
-        }
-    }
 }
 
 /// What the report says of the GPU adapter a bake runs on (None on the CPU).

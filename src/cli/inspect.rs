@@ -49,7 +49,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     if let Some(t) = drape::bake::budget::Targets::stability(&scene) {
         let (top_s, top_i) = t.levels[t.levels.len() - 1];
         println!(
-            "  budget left to drape (no accuracy targets, and the scene leaves out its substeps or iterations): on the CPU a frame that goes unstable is simulated again at a larger one, up to {top_s} × {top_i}"
+            "  budget left to drape (no accuracy targets, and the scene leaves out its substeps or iterations): a frame that goes unstable is simulated again at a larger one, up to {top_s} × {top_i}"
         );
     }
     print_garments(&garments);

@@ -193,6 +193,12 @@ impl GpuSimulation {
     pub fn reload(&mut self, sim: &mut Simulation) -> Result<()> {
         // The nearby lists carry over, as they do on the CPU.
         self.read_nearby(sim)?;
+        self.take(sim)
+    }
+
+    /// Uploads `sim` as it is, its nearby lists too (a frame's start put back into it, at
+    /// another budget), keeping the kernels.
+    pub fn take(&mut self, sim: &Simulation) -> Result<()> {
         *self = GpuSimulation::with_kernels(self.ctx.clone(), self.kernels.clone(), sim)?;
         Ok(())
     }
