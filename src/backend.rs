@@ -78,7 +78,8 @@ impl Backend {
         }
     }
 
-    /// Takes `sim`'s model and state afresh (after tearing changed the springs).
+    /// Takes `sim`'s model and state afresh (after tearing changed the springs, or a budget the
+    /// substeps and iterations), keeping what only the GPU held (its nearby shell lists).
     pub fn reload(&mut self, sim: &mut Simulation) -> Result<()> {
         match self {
             Backend::Cpu => Ok(()),
@@ -92,6 +93,15 @@ impl Backend {
         match self {
             Backend::Cpu => Ok(()),
             Backend::Gpu(g) => g.take(sim),
+        }
+    }
+
+    /// Whether the backend can run `sim` at `substeps` per frame (a budget's largest; the CPU
+    /// always can).
+    pub fn fits_substeps(&self, sim: &Simulation, substeps: u32) -> Result<()> {
+        match self {
+            Backend::Cpu => Ok(()),
+            Backend::Gpu(g) => g.fits_substeps(sim, substeps),
         }
     }
 

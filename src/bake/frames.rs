@@ -79,13 +79,7 @@ pub fn run(
             });
             break;
         }
-        if let Some(bytes) = backend.uploaded_last_frame() {
-            progress.uploaded += bytes;
-        }
-        if let Some((dispatches, submissions)) = backend.launches_last_frame() {
-            progress.dispatched += u64::from(dispatches);
-            progress.submitted += u64::from(submissions);
-        }
+        count_gpu_work(backend, &mut progress);
         let tearing = Instant::now();
         if sim.tears() && sim.tear() > 0 {
             // The GPU takes the torn model (and the state it produced) afresh.
@@ -338,7 +332,9 @@ fn step_within(
                 progress.budget.raise();
                 kept_missing = false;
                 t.apply(sim, progress.budget.level);
-                // The GPU starts the frame again from the state put back, at the new budget.
+                // The GPU starts the frame again from the state put back, at the new budget;
+                // what the rejected attempt uploaded and launched counts too.
+                count_gpu_work(backend, progress);
                 backend.upload(sim)?;
                 let (s, i) = t.levels[progress.budget.level];
                 why = format!("{reason}: raised to {s} substeps × {i} iterations");
@@ -372,6 +368,18 @@ fn step_within(
         progress.budget.pending_why = why;
     }
     Ok(true)
+}
+
+/// Adds what the GPU uploaded and launched for the last frame (or attempt at one) to
+/// `progress` (nothing on the CPU).
+fn count_gpu_work(backend: &Backend, progress: &mut Progress) {
+    if let Some(bytes) = backend.uploaded_last_frame() {
+        progress.uploaded += bytes;
+    }
+    if let Some((dispatches, submissions)) = backend.launches_last_frame() {
+        progress.dispatched += u64::from(dispatches);
+        progress.submitted += u64::from(submissions);
+    }
 }
 
 /// The worst structural strain and cell shear of `sim` now and the deepest any free particle is

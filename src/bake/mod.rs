@@ -295,6 +295,21 @@ fn run(
             })?;
     }
     let mut backend = Backend::for_scene(scene.backend, &sim, &mut warnings)?;
+    if let Some(top) = targets
+        .as_ref()
+        .and_then(|t| t.levels.iter().map(|l| l.0).max())
+    {
+        // A budget goes up to its largest substeps on the backend it starts on.
+        if let Err(Error::Gpu { reason }) = backend.fits_substeps(&sim, top) {
+            let why = format!("{reason} (at the budget's largest, {top} substeps per frame)");
+            if scene.backend != crate::scene::BackendKind::Auto {
+                let reason = format!("{why}; use the cpu backend");
+                return Err(Error::Gpu { reason });
+            }
+            warnings.push(format!("backend auto: {why}; simulating on the CPU"));
+            backend = Backend::Cpu;
+        }
+    }
     if !backend.is_gpu() {
         // Only the GPU places shells from their meshes; the CPU reads the shells' own frames
         // (P: 15 MB of the mannequin's vertices no longer held).

@@ -67,6 +67,11 @@ pub struct GpuSimulation {
 /// Refuses what the GPU cannot run: sequential Gauss-Seidel, buffers past the adapter's
 /// binding size, dispatches past its workgroup count.
 fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
+    check_capacity_at(ctx, sim, sim.substeps())
+}
+
+/// [`check_capacity`] for `sim` at `substeps` per frame (a budget's largest).
+fn check_capacity_at(ctx: &GpuContext, sim: &Simulation, substeps: u32) -> Result<()> {
     if sim.solver_settings().kind == SolverKind::Gs {
         return Err(Error::Gpu {
             reason: "sequential Gauss-Seidel (gs) has no parallel GPU form: use rbgs, jacobi or pbd, or the cpu backend".into(),
@@ -87,12 +92,12 @@ fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
     }
     // Characters' shells take one share per substep (particles and grids).
     let shell_particles: usize = sim.drivers.shells.iter().map(|s| s.most_particles()).sum();
-    let shell_bytes = shell_particles as u64 * SHELL_PARTICLE_BYTES * sim.substeps() as u64;
+    let shell_bytes = shell_particles as u64 * SHELL_PARTICLE_BYTES * substeps as u64;
     if shell_bytes > limit as u64 {
         return Err(Error::Gpu {
             reason: format!(
                 "characters' shells ({shell_particles} particles) at {} substeps per frame need {} MiB buffers; {} allows {} MiB",
-                sim.substeps(),
+                substeps,
                 shell_bytes >> 20,
                 ctx.adapter.name,
                 limit >> 20
@@ -100,11 +105,11 @@ fn check_capacity(ctx: &GpuContext, sim: &Simulation) -> Result<()> {
         });
     }
     let dispatch_limit = ctx.device.limits().max_compute_workgroups_per_dimension as usize;
-    if !sim.drivers.shells.is_empty() && sim.substeps() as usize > dispatch_limit {
+    if !sim.drivers.shells.is_empty() && substeps as usize > dispatch_limit {
         return Err(Error::Gpu {
             reason: format!(
                 "characters' shells are placed for every substep in one dispatch: {} substeps per frame are more than the {dispatch_limit} workgroups {} runs per dispatch",
-                sim.substeps(), ctx.adapter.name
+                substeps, ctx.adapter.name
             ),
         });
     }
@@ -178,8 +183,8 @@ fn groups(count: u32, size: u32) -> u32 {
 impl GpuSimulation {
     /// Uploads `sim`'s model and state to the GPU of `ctx`.
     pub fn new(ctx: GpuContext, sim: &Simulation) -> Result<GpuSimulation> {
-        // Tearing (the one reload) changes neither the shells nor the colliders: these kernels
-        // serve every reload.
+        // Neither tearing nor a budget's change (the reloads) changes the shells or the
+        // colliders: these kernels serve every reload.
         let kernels = Kernels::new(
             &ctx.device,
             !sim.drivers.shells.is_empty(),
@@ -189,7 +194,7 @@ impl GpuSimulation {
     }
 
     /// Uploads `sim`'s model and state again, after something changed them on the CPU (tearing
-    /// rebuilds the model): the kernels are kept.
+    /// rebuilds the model; a budget changes the substeps and iterations): the kernels are kept.
     pub fn reload(&mut self, sim: &mut Simulation) -> Result<()> {
         // The nearby lists carry over, as they do on the CPU.
         self.read_nearby(sim)?;
@@ -197,10 +202,28 @@ impl GpuSimulation {
     }
 
     /// Uploads `sim` as it is, its nearby lists too (a frame's start put back into it, at
-    /// another budget), keeping the kernels.
+    /// another budget), keeping the kernels, whether stages are timed, and the last frame's
+    /// counts of uploads and launches (until the next frame runs).
     pub fn take(&mut self, sim: &Simulation) -> Result<()> {
+        let timed = self.clock.is_some();
+        let counts = (
+            self.uploaded_last_frame,
+            self.dispatches.get(),
+            self.submissions,
+        );
         *self = GpuSimulation::with_kernels(self.ctx.clone(), self.kernels.clone(), sim)?;
+        if timed != self.clock.is_some() {
+            self.time_stages(sim, timed);
+        }
+        (self.uploaded_last_frame, self.submissions) = (counts.0, counts.2);
+        self.dispatches.set(counts.1);
         Ok(())
+    }
+
+    /// Whether this device could run `sim` at `substeps` per frame (a budget's largest: the
+    /// characters' shells take a share of a buffer per substep).
+    pub fn fits_substeps(&self, sim: &Simulation, substeps: u32) -> Result<()> {
+        check_capacity_at(&self.ctx, sim, substeps)
     }
 
     fn with_kernels(ctx: GpuContext, kernels: Kernels, sim: &Simulation) -> Result<GpuSimulation> {

@@ -121,7 +121,7 @@ pub struct Report {
     /// Set when the bake continued from a checkpoint: the frames up to it were replayed from
     /// that bake's frame log, not simulated again.
     pub resumed: Option<Resumed>,
-    /// With accuracy targets, or a budget left to drape on the CPU (`bake::budget`): the budget
+    /// With accuracy targets, or a budget left to drape (`bake::budget`): the budget
     /// chosen for every frame, why, and what it reached.
     pub budget: Option<BudgetReport>,
     /// Checkpoints this run wrote into `checkpoints/` (none when `checkpoint_every` is 0).

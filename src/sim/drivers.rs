@@ -186,6 +186,15 @@ impl Drivers {
         }
     }
 
+    /// Every keyframed collider back in its shape at rest, as the bake starts (not moved).
+    pub(super) fn rest_colliders(&mut self) {
+        for (i, _, rest) in &self.collider_motion {
+            let c = &mut self.colliders[*i];
+            c.shape = *rest;
+            c.moved = glam::Vec3::ZERO;
+        }
+    }
+
     /// Every keyframed collider in its pose at time `t` [s], with how far it moved to get there.
     fn set_collider_poses(&mut self, t: f32) {
         for (i, track, rest) in &self.collider_motion {

@@ -147,6 +147,10 @@ impl Simulation {
             // measures its motion from there).
             let t = self.drivers.clock.time();
             self.drivers.pose_colliders(t);
+        } else {
+            // At the start: at rest, as a new bake's (a first frame simulated again would
+            // otherwise measure its first motion from where the rejected attempt left them).
+            self.drivers.rest_colliders();
         }
         self.drivers.driven_speed = snapshot.driven_speed;
         Ok(())
