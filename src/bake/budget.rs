@@ -33,7 +33,8 @@
 //! goes unstable.
 //!
 //! Both backends: the GPU reads a frame's start back (with its nearby shell lists) and takes
-//! each new budget with the state it starts from; it does not settle the frames after a raise.
+//! each new budget with the state it starts from; the frames that settle run on the CPU, which
+//! caps kinetic energy substep by substep, and the GPU takes their end.
 
 pub use crate::report::{BudgetKind, BudgetReport, FrameBudget};
 use crate::scene::Scene;

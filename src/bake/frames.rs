@@ -272,8 +272,8 @@ impl Measured {
 /// next frame's budget one higher when this one came close, one lower after a calm stretch.
 /// Records the frame's budget in `progress`. False when `stop` stopped it inside the frame:
 /// then the simulation and the budget are back where the frame started. On the GPU the frame's
-/// start (its nearby shell lists too) is read back first, and each budget goes up with the
-/// state it starts from.
+/// start (its nearby shell lists too) is read back first, each budget goes up with the state
+/// it starts from, and a frame that settles runs on the CPU ([`step_frame_settled`]).
 fn step_within(
     t: &Targets,
     sim: &mut Simulation,
@@ -292,12 +292,11 @@ fn step_within(
     let mut why = std::mem::take(&mut progress.budget.pending_why);
     let mut kept_missing = false;
     let reading = loop {
-        // The GPU does not cap a frame's kinetic energy substep by substep: there the frames
-        // after a raise run unsettled.
-        if progress.budget.settle > 0 && !backend.is_gpu() {
+        let settling = progress.budget.settle > 0;
+        if settling {
             sim.settle_frame();
         }
-        if !backend.step_frame_or_stop(sim, stop)? {
+        if !step_frame_settled(sim, backend, settling, stop)? {
             sim.restore(&before)
                 .expect("a simulation takes its own snapshot");
             progress.budget = budget_before;
@@ -363,11 +362,31 @@ fn step_within(
     });
     if let Some(why) = progress.budget.after_frame(t, reading) {
         t.apply(sim, progress.budget.level);
-        // The GPU takes the next frames' budget (and keeps its nearby lists).
+        // The GPU takes the next frames' budget (and keeps its nearby lists); what it did for
+        // this frame is counted first.
+        count_gpu_work(backend, progress);
         backend.reload(sim)?;
         progress.budget.pending_why = why;
     }
     Ok(true)
+}
+
+/// Steps one frame on `backend`, unless it is `settling` on the GPU, which does not cap a
+/// frame's kinetic energy substep by substep: that frame runs on the CPU (the simulation is
+/// the GPU's state, read back after every frame), and the GPU takes its end. False when
+/// `stop` stopped it inside the frame.
+fn step_frame_settled(
+    sim: &mut Simulation,
+    backend: &mut Backend,
+    settling: bool,
+    stop: &dyn Fn() -> bool,
+) -> Result<bool> {
+    if !(settling && backend.is_gpu()) {
+        return backend.step_frame_or_stop(sim, stop);
+    }
+    let whole = sim.step_frame_or_stop(stop);
+    backend.upload(sim)?;
+    Ok(whole)
 }
 
 /// Adds what the GPU uploaded and launched for the last frame (or attempt at one) to

@@ -202,21 +202,14 @@ impl GpuSimulation {
     }
 
     /// Uploads `sim` as it is, its nearby lists too (a frame's start put back into it, at
-    /// another budget), keeping the kernels, whether stages are timed, and the last frame's
-    /// counts of uploads and launches (until the next frame runs).
+    /// another budget), keeping the kernels and whether stages are timed; the counts of uploads
+    /// and launches start again from none (the caller counts the last frame's first).
     pub fn take(&mut self, sim: &Simulation) -> Result<()> {
         let timed = self.clock.is_some();
-        let counts = (
-            self.uploaded_last_frame,
-            self.dispatches.get(),
-            self.submissions,
-        );
         *self = GpuSimulation::with_kernels(self.ctx.clone(), self.kernels.clone(), sim)?;
         if timed != self.clock.is_some() {
             self.time_stages(sim, timed);
         }
-        (self.uploaded_last_frame, self.submissions) = (counts.0, counts.2);
-        self.dispatches.set(counts.1);
         Ok(())
     }
 
