@@ -17,6 +17,10 @@ struct Params {
     inv_step: f32,             // 1/h
     keep: f32,                 // velocity kept per step, exp(-damping h)
     omega: f32,                // over-relaxation
+    range2_start: u32,         // a sweep's colour in a small model: its high side, after the low
+    range2_end: u32,           // side's range_start..range_end; empty otherwise
+    separator_colours: u32,    // a small model's separator: its colours, and where each starts
+    separator_start: array<vec4<u32>, 4>, // (and the last ends), four to a vector
 }
 
 // Static per-particle data.

@@ -1,12 +1,40 @@
 // Stage 2b, one colour of a red-black Gauss-Seidel sweep: particles of one colour are contiguous
-// (colour-sorted storage), share no spring, and update in place.
+// (colour-sorted storage; a small model's colour in two ranges, its low and high sides), share no
+// spring, and update in place.
 @compute @workgroup_size(64)
 fn sweep(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = params.range_start + id.x;
-    if (i >= params.range_end || particle[i].diag_inv == 0.0) {
+    let low = params.range_end - params.range_start;
+    var i = params.range_start + id.x;
+    if (id.x >= low) {
+        i = params.range2_start + (id.x - low);
+        if (i >= params.range2_end) {
+            return;
+        }
+    }
+    if (particle[i].diag_inv == 0.0) {
         return;
     }
     delta[i] = over_relax(delta[i], spring_row_solve(i), params.omega);
+}
+
+// A small model's separator (src/sim/separator.rs), after both sides: every colour in one
+// dispatch of one workgroup, its threads sharing each colour, a storage barrier between colours
+// (a few dozen particles: one dispatch where a colour each would be several).
+const SEPARATOR_GROUP: u32 = 64u;
+
+@compute @workgroup_size(64)
+fn sweep_separator(@builtin(local_invocation_index) thread: u32) {
+    for (var c = 0u; c < params.separator_colours; c = c + 1u) {
+        let start = params.separator_start[c / 4u][c % 4u];
+        let end = params.separator_start[(c + 1u) / 4u][(c + 1u) % 4u];
+        for (var i = start + thread; i < end; i = i + SEPARATOR_GROUP) {
+            if (particle[i].diag_inv != 0.0) {
+                delta[i] = over_relax(delta[i], spring_row_solve(i), params.omega);
+            }
+        }
+        // The colour's moves seen by every thread before the next colour reads them.
+        storageBarrier();
+    }
 }
 
 // Jacobi: every particle from the previous iterate into `scratch` (no atomics) ...

@@ -111,26 +111,37 @@ fn red_black_is_bit_identical_on_one_and_two_threads() {
 
 /// Red-black Gauss-Seidel gives the same bits on teams of 1 to 5 threads (each thread's share
 /// of a colour, and of the local step, differs with the team's size), with shear and bend springs
-/// (five colours), two inner sweeps per local step, over-relaxation, a pin and collisions.
+/// (five colours), two inner sweeps per local step, over-relaxation, a pin and collisions: on a
+/// small cloth (391 particles: two sides swept apart, then the separator, `sim::separator`) and
+/// on a larger one (1 189: every colour shared out among the team).
 #[test]
 fn red_black_gives_the_same_bits_on_any_team() {
-    let scene = Scene::parse(
-        r#"{ "frames": 10, "substeps": 4,
-             "solver": { "kind": "rbgs", "iterations": 5, "inner_iterations": 2, "omega": 1.5,
-                         "contact_passes": 2 },
-             "colliders": [{ "kind": "sphere", "centre": [0, 0.3, 0], "radius": 0.25 }],
-             "garments": [{ "resolution": [23, 17], "size": [1, 0.8], "position": [0, 0.6, 0],
-                            "pins": [[0, 0]],
-                            "stiffness": { "stretch": 5000, "shear": 300, "bend": 20 } }] }"#,
-        "<test>",
-    )
-    .expect("scene");
-    let run = |threads| positions_after(&scene, 10, threads);
-    let one = run(1);
-    let start = Simulation::new(&scene).unwrap().export_positions();
-    assert!(!same_bits(&one, &start), "the cloth moved");
-    for threads in 2..=5 {
-        assert!(same_bits(&one, &run(threads)), "{threads} threads");
+    for resolution in [[23, 17], [41, 29]] {
+        let scene = Scene::parse(
+            &format!(
+                r#"{{ "frames": 10, "substeps": 4,
+                 "solver": {{ "kind": "rbgs", "iterations": 5, "inner_iterations": 2,
+                             "omega": 1.5, "contact_passes": 2 }},
+                 "colliders": [{{ "kind": "sphere", "centre": [0, 0.3, 0], "radius": 0.25 }}],
+                 "garments": [{{ "resolution": {resolution:?}, "size": [1, 0.8],
+                                "position": [0, 0.6, 0], "pins": [[0, 0]],
+                                "stiffness": {{ "stretch": 5000, "shear": 300, "bend": 20 }} }}] }}"#
+            ),
+            "<test>",
+        )
+        .expect("scene");
+        let small = Simulation::new(&scene).unwrap().model().domains.is_some();
+        assert_eq!(small, resolution == [23, 17], "{resolution:?}");
+        let run = |threads| positions_after(&scene, 10, threads);
+        let one = run(1);
+        let start = Simulation::new(&scene).unwrap().export_positions();
+        assert!(!same_bits(&one, &start), "the cloth moved");
+        for threads in 2..=5 {
+            assert!(
+                same_bits(&one, &run(threads)),
+                "{resolution:?}, {threads} threads"
+            );
+        }
     }
 }
 

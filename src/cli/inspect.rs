@@ -62,8 +62,37 @@ pub fn run(args: InspectArgs) -> anyhow::Result<i32> {
     for line in advice.iter().chain(&crossed) {
         println!("  warning: {line}");
     }
-    for (c, r) in model.colour_ranges.iter().enumerate() {
-        println!("  colour {c}: {} particles", r.len());
+    let ranges = &model.colour_ranges;
+    match model.domains {
+        // Small: two sides swept by two threads apart, then the separator.
+        Some(d) => {
+            let sizes = |side: &[std::ops::Range<usize>]| {
+                let sizes: Vec<String> = side.iter().map(|r| r.len().to_string()).collect();
+                sizes.join(", ")
+            };
+            let separator: usize = d.separator(ranges).iter().map(|r| r.len()).sum();
+            println!(
+                "  small model: two sides swept apart, then a separator (a sweep: {} colours of both sides, then the separator's)",
+                model.sweep_colours().len()
+            );
+            println!(
+                "  low side, particles per colour: {}",
+                sizes(d.side(ranges, 0))
+            );
+            println!(
+                "  high side, particles per colour: {}",
+                sizes(d.side(ranges, 1))
+            );
+            println!(
+                "  separator: {separator} particles in {} colours",
+                d.separator(ranges).len()
+            );
+        }
+        None => {
+            for (c, r) in ranges.iter().enumerate() {
+                println!("  colour {c}: {} particles", r.len());
+            }
+        }
     }
     println!("  colliders: {}", scene.colliders.len());
     for (i, c) in scene.characters.iter().enumerate() {

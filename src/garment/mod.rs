@@ -657,3 +657,17 @@ fn sheet_triangles(dims: [u32; 3]) -> Vec<[u32; 3]> {
     }
     tris
 }
+
+/// A 1 m × 1 m sheet of `resolution` particles with `stiffness` (scene JSON), for unit tests.
+#[cfg(test)]
+pub(crate) fn test_sheet(resolution: [u32; 2], stiffness: &str) -> Garment {
+    let scene = crate::scene::Scene::parse(
+        &format!(
+            r#"{{ "garments": [{{ "resolution": {resolution:?}, "size": [1, 1],
+                 "stiffness": {stiffness} }}] }}"#
+        ),
+        "<test>",
+    )
+    .expect("scene");
+    Garment::build("g".into(), &scene.garments[0])
+}

@@ -7,6 +7,7 @@
 use super::kernels::Kernels;
 use super::layout::{
     shell_flags, GpuCollider, GpuContacts, GpuParams, GpuParticle, GpuShellInfo, PARAMS_STRIDE,
+    SEPARATOR_STARTS,
 };
 use crate::scene::SolverKind;
 use crate::sim::Simulation;
@@ -249,6 +250,18 @@ impl StateGroup {
     }
 }
 
+/// Where each of a small model's separator colours starts, and the last ends, four to a
+/// vector (zeros after them; every slot carries them, the separator's dispatch reads them from
+/// [`PARAMS_NEXT`]).
+fn separator_starts(colours: &[std::ops::Range<usize>]) -> [[u32; 4]; SEPARATOR_STARTS / 4] {
+    let mut starts = [[0u32; 4]; SEPARATOR_STARTS / 4];
+    let bounds = (colours.iter().map(|r| r.start)).chain(colours.last().map(|r| r.end));
+    for (k, at) in bounds.enumerate() {
+        starts[k / 4][k % 4] = at as u32;
+    }
+    starts
+}
+
 /// The uniform slots' bytes ([`PARAMS_NEXT`], [`PARAMS_COLOUR`], then `attach` and `finish`
 /// per substep).
 struct ParamSlots {
@@ -277,9 +290,15 @@ impl ParamSlots {
             inv_step: 1.0 / h,
             keep,
             omega: sim.solver_settings().omega,
+            range2_start: 0,
+            range2_end: 0,
+            separator_colours: model.separator_colours().len() as u32,
+            _pad: 0,
+            separator_start: separator_starts(model.separator_colours()),
         };
         let attached = sim.drivers.attachments.list.len() as u32;
-        let attach = PARAMS_COLOUR + model.colour_ranges.len() as u32;
+        let colours = model.sweep_colours();
+        let attach = PARAMS_COLOUR + colours.len() as u32;
         let finish = attach + sim.substeps();
         let mut bytes = vec![0u8; PARAMS_STRIDE as usize * (finish + sim.substeps()) as usize];
         let mut put = |slot: u32, p: GpuParams| {
@@ -288,13 +307,14 @@ impl ParamSlots {
                 .copy_from_slice(bytemuck::bytes_of(&p));
         };
         put(PARAMS_NEXT, base);
-        for (c, r) in model.colour_ranges.iter().enumerate() {
-            let (range_start, range_end) = (r.start as u32, r.end as u32);
+        for (c, [low, high]) in colours.iter().enumerate() {
             put(
                 PARAMS_COLOUR + c as u32,
                 GpuParams {
-                    range_start,
-                    range_end,
+                    range_start: low.start as u32,
+                    range_end: low.end as u32,
+                    range2_start: high.start as u32,
+                    range2_end: high.end as u32,
                     ..base
                 },
             );

@@ -25,7 +25,7 @@ pub const KERNEL_FILES: [(&str, &str, &[&str]); 7] = [
     (
         "sweep.wgsl",
         include_str!("../../shaders/sweep.wgsl"),
-        &["sweep", "jacobi", "copy_scratch", "pbd"],
+        &["sweep", "sweep_separator", "jacobi", "copy_scratch", "pbd"],
     ),
     (
         "finish.wgsl",
@@ -95,6 +95,8 @@ pub struct Kernels {
     pub predict: wgpu::ComputePipeline,
     pub project: wgpu::ComputePipeline,
     pub sweep: wgpu::ComputePipeline,
+    /// A small model's separator, every colour in one workgroup.
+    pub sweep_separator: wgpu::ComputePipeline,
     pub jacobi: wgpu::ComputePipeline,
     pub copy_scratch: wgpu::ComputePipeline,
     pub pbd: wgpu::ComputePipeline,
@@ -359,6 +361,7 @@ impl Kernels {
             predict: pipeline("predict"),
             project: pipeline("project"),
             sweep: pipeline("sweep"),
+            sweep_separator: pipeline("sweep_separator"),
             jacobi: pipeline("jacobi"),
             copy_scratch: pipeline("copy_scratch"),
             pbd: pipeline("pbd"),

@@ -24,7 +24,20 @@ pub struct GpuParams {
     pub inv_step: f32,
     pub keep: f32,
     pub omega: f32,
+    /// A sweep's colour in a small model: its high side's range, after `range_start..range_end`
+    /// (its low side's); empty otherwise.
+    pub range2_start: u32,
+    pub range2_end: u32,
+    /// A small model's separator, swept in one dispatch: its colours, and where each starts
+    /// (and the last ends), four to a vector.
+    pub separator_colours: u32,
+    pub _pad: u32,
+    pub separator_start: [[u32; 4]; SEPARATOR_STARTS / 4],
 }
+
+/// Colour starts (and the end) of a small model's separator the uniform holds.
+pub const SEPARATOR_STARTS: usize = crate::sim::separator::MAX_COLOURS + 1;
+const _: () = assert!(SEPARATOR_STARTS % 4 == 0);
 
 /// Static per-particle data (WGSL `Particle`).
 #[repr(C)]
@@ -121,7 +134,7 @@ pub mod shell_flags {
     pub const STATIC: u32 = 4;
 }
 
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuParticle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuCollider>() == 80);
 const _: () = assert!(std::mem::size_of::<crate::sim::model::Slot>() == 12);
@@ -210,7 +223,11 @@ pub const MIRROR_OFFSETS: [(&str, &[(&str, usize)]); 9] = [
             step,
             inv_step,
             keep,
-            omega
+            omega,
+            range2_start,
+            range2_end,
+            separator_colours,
+            separator_start
         ]
     ),
     offsets!(

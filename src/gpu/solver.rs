@@ -55,7 +55,10 @@ pub struct GpuSimulation {
     particles: u32,
     springs: u32,
     structural: u32,
-    colour_ranges: Vec<(u32, u32)>,
+    /// Particles in each colour of a sweep ([`crate::sim::model::Model::sweep_colours`]).
+    colour_sizes: Vec<u32>,
+    /// A small model's separator, swept after them in one dispatch.
+    separator: bool,
     /// What every frame runs until the next reload: the solver's settings, the substep's
     /// stages, substeps per frame, and whether particles move under time integration.
     settings: crate::scene::SolverSettings,
@@ -256,11 +259,10 @@ impl GpuSimulation {
             particles: model.particle_count() as u32,
             springs: model.springs.len() as u32,
             structural: model.structural_springs as u32,
-            colour_ranges: model
-                .colour_ranges
-                .iter()
-                .map(|r| (r.start as u32, r.end as u32))
+            colour_sizes: (model.sweep_colours().iter())
+                .map(|[low, high]| (low.len() + high.len()) as u32)
                 .collect(),
+            separator: !model.separator_colours().is_empty(),
             settings: sim.solver_settings().clone(),
             schedule: sim.schedule(),
             substeps: sim.substeps(),
@@ -731,8 +733,12 @@ impl GpuSimulation {
                 self.dispatch(pass, &k.jacobi, PARAMS_NEXT, n, GROUP);
                 self.dispatch(pass, &k.copy_scratch, PARAMS_NEXT, n, GROUP);
             } else {
-                for (c, &(start, end)) in self.colour_ranges.iter().enumerate() {
-                    self.dispatch(pass, &k.sweep, PARAMS_COLOUR + c as u32, end - start, GROUP);
+                for (c, &size) in self.colour_sizes.iter().enumerate() {
+                    self.dispatch(pass, &k.sweep, PARAMS_COLOUR + c as u32, size, GROUP);
+                }
+                if self.separator {
+                    // One workgroup (`sweep.wgsl`'s SEPARATOR_GROUP threads).
+                    self.dispatch(pass, &k.sweep_separator, PARAMS_NEXT, GROUP, GROUP);
                 }
             }
             residual(pass);

@@ -16,6 +16,7 @@ pub mod limit;
 pub mod metrics;
 pub mod model;
 pub mod schedule;
+pub mod separator;
 mod settle;
 pub mod snapshot;
 pub mod solver;

@@ -7,11 +7,17 @@
 //! keep garment and grid order. `storage_of` maps the export order (garments one after another, each
 //! in grid order) to storage indices.
 //!
+//! A small model (at most [`SMALL_MODEL`] particles) is laid out in two domains and a separator
+//! ([`super::separator`], [`Domains`]): every colour of its low side, then every colour of its
+//! high side, then the separator's particles in colours of their own. The sweep's colour order is
+//! each side's colour c (together, on the GPU: [`Model::sweep_colours`]), then the separator's.
+//!
 //! Springs are kept twice: as a list (`springs`, storage indices, for metrics) and as per-particle
 //! adjacency *slots* in compressed rows (`slot_start`), the layout the gather-style solvers read:
 //! for particle i, slots `slot_start[i]..slot_start[i+1]` name each neighbour with the spring's
 //! rest length and weight.
 
+use super::separator::{self, Side, SMALL_MODEL};
 use crate::garment::{Garment, SpringFamily};
 use std::ops::Range;
 
@@ -112,8 +118,15 @@ pub struct Model {
     pub contact_radius: Vec<f32>,
     /// Storage range of each colour.
     pub colour_ranges: Vec<Range<usize>>,
+    /// A small model's two domains; None for a larger one.
+    pub domains: Option<Domains>,
     /// Storage index of each export-order particle.
     pub storage_of: Vec<u32>,
+    /// The order in which stages that compute each particle alone share them out
+    /// ([`super::team::Member::balanced`]), storage indices: export order, and in a small model
+    /// the low side's particles first, then the separator's, then the high side's, so each
+    /// thread starts on the particles its Gauss-Seidel sweep updates.
+    pub work_order: Vec<u32>,
     /// Start of each particle's slots; length = particles + 1.
     pub slot_start: Vec<u32>,
     /// Every particle's springs as seen from that particle, rows one after another.
@@ -132,6 +145,32 @@ pub struct Model {
     /// The lattice's cell corners, storage indices `[corner, a, b]`: two structural springs
     /// from one particle along different lattice axes, square at rest (the shear metric).
     pub corners: Vec<[u32; 3]>,
+}
+
+/// A small model's layout for two threads ([`super::separator`]): its first `colours` colour
+/// ranges hold the low side, colour by colour (some may be empty), the next `colours` the high
+/// side, and the rest the separator, which no spring joins to both sides. Each side is stored
+/// apart, so the two threads that sweep them write different cache lines.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Domains {
+    pub colours: usize,
+}
+
+impl Domains {
+    /// The colour ranges of `side` (0 low, 1 high) among `ranges` (the model's).
+    pub fn side<'r>(&self, ranges: &'r [Range<usize>], side: usize) -> &'r [Range<usize>] {
+        &ranges[side * self.colours..(side + 1) * self.colours]
+    }
+
+    /// The separator's colour ranges among `ranges`.
+    pub fn separator<'r>(&self, ranges: &'r [Range<usize>]) -> &'r [Range<usize>] {
+        &ranges[2 * self.colours..]
+    }
+
+    /// The thread whose sweeps update colour range `k`: 1 for the high side, else 0.
+    pub fn owner(&self, k: usize) -> usize {
+        usize::from((self.colours..2 * self.colours).contains(&k))
+    }
 }
 
 /// Every garment's cell corners, storage indices.
@@ -181,13 +220,29 @@ impl Model {
     /// Lays out garments for the solvers.
     pub fn new(garments: &[Garment]) -> Model {
         let colours = garments.iter().map(|g| g.colour_count()).max().unwrap_or(1) as usize;
-        // Export order: garments one after another. Bucket every particle by colour.
-        let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); colours];
+        let small = garments.iter().map(|g| g.particle_count()).sum::<usize>() <= SMALL_MODEL
+            && colours <= separator::MAX_COLOURS;
+        // Export order: garments one after another. Bucket every particle by colour, and in a
+        // small model by side too: [low, high, separator] per colour.
+        let mut buckets: Vec<[Vec<usize>; 3]> = vec![Default::default(); colours];
         let mut offset = 0;
         let mut ranges = Vec::new();
+        // Export-order particles by part: low side, high side, separator.
+        let mut parts: [Vec<usize>; 3] = Default::default();
         for g in garments {
-            for k in 0..g.particle_count() {
-                buckets[g.colour_of(k as u32) as usize].push(offset + k);
+            let sides = if small {
+                separator::sides(g)
+            } else {
+                vec![Side::Low; g.particle_count()]
+            };
+            for (k, side) in sides.into_iter().enumerate() {
+                let part = match side {
+                    Side::Low => 0,
+                    Side::High => 1,
+                    Side::Separator => 2,
+                };
+                buckets[g.colour_of(k as u32) as usize][part].push(offset + k);
+                parts[part].push(offset + k);
             }
             ranges.push(GarmentRange {
                 name: g.name.clone(),
@@ -208,20 +263,34 @@ impl Model {
         let mut storage_of = vec![0u32; n];
         let mut colour_ranges = Vec::with_capacity(colours);
         let mut next = 0usize;
-        for bucket in &buckets {
-            colour_ranges.push(next..next + bucket.len());
-            for &e in bucket {
-                storage_of[e] = next as u32;
-                next += 1;
+        // Colour by colour (every colour, even empty): every particle of a large model; in a
+        // small one the low side's, then the high side's, then the separator's (its colours
+        // that have particles).
+        for (part, keep_empty) in [(0, true), (1, small), (2, false)] {
+            for bucket in buckets.iter().map(|b| &b[part]) {
+                if bucket.is_empty() && !keep_empty {
+                    continue;
+                }
+                colour_ranges.push(next..next + bucket.len());
+                for &e in bucket {
+                    storage_of[e] = next as u32;
+                    next += 1;
+                }
             }
         }
-
+        let domains = small.then_some(Domains { colours });
+        let [low, high, separator] = parts;
+        let work_order = (low.into_iter().chain(separator).chain(high))
+            .map(|e| storage_of[e])
+            .collect();
         let mut model = Model {
             mass: vec![0.0; n],
             inv_mass: vec![0.0; n],
             contact_radius: vec![0.0; n],
             colour_ranges,
+            domains,
             storage_of,
+            work_order,
             garments: ranges,
             ..Model::default()
         };
@@ -262,10 +331,19 @@ impl Model {
     /// and the tethers' index built from them.
     fn set_springs(&mut self, mut springs: Vec<(SpringFamily, ModelSpring, f32)>) {
         let n = self.mass.len();
-        // Structural springs first, so metrics read one prefix; then in storage order of their
-        // first particle, so a thread's share of springs covers the particles it updates.
+        // Structural springs first, so metrics read one prefix; in a model of two domains, the
+        // springs the low side's thread projects before those of the high side's, so the two
+        // threads write different cache lines; then in storage order of their first particle, so
+        // a thread's share of springs covers the particles it updates.
+        let high = self.high_side();
         springs.sort_by_key(|(family, s, _)| {
-            (*family != SpringFamily::Stretch, s.a.min(s.b), s.a.max(s.b))
+            let side = high[s.a as usize] || high[s.b as usize];
+            (
+                *family != SpringFamily::Stretch,
+                side,
+                s.a.min(s.b),
+                s.a.max(s.b),
+            )
         });
         self.structural_springs = springs
             .iter()
@@ -311,6 +389,61 @@ impl Model {
         }
     }
 
+    /// Per particle (storage order), whether it is in a small model's high domain (all false in
+    /// a larger model).
+    pub fn high_side(&self) -> Vec<bool> {
+        let mut high = vec![false; self.particle_count()];
+        if let Some(d) = &self.domains {
+            for r in d.side(&self.colour_ranges, 1) {
+                high[r.clone()].fill(true);
+            }
+        }
+        high
+    }
+
+    /// The colours of a sweep, in order, as the GPU dispatches them: each colour's particles in
+    /// one range or, in a small model, two (its low and high sides; either may be empty). A
+    /// small model's separator follows them ([`Self::separator_colours`]).
+    pub fn sweep_colours(&self) -> Vec<[Range<usize>; 2]> {
+        let ranges = &self.colour_ranges;
+        match self.domains {
+            Some(d) => (d.side(ranges, 0).iter().zip(d.side(ranges, 1)))
+                .map(|(low, high)| [low.clone(), high.clone()])
+                .collect(),
+            None => ranges.iter().map(|r| [r.clone(), r.end..r.end]).collect(),
+        }
+    }
+
+    /// A small model's separator colours, swept after [`Self::sweep_colours`] (none in a
+    /// larger model).
+    pub fn separator_colours(&self) -> &[Range<usize>] {
+        match self.domains {
+            Some(d) => d.separator(&self.colour_ranges),
+            None => &[],
+        }
+    }
+
+    /// Thread `index`'s particles in a team of `count`, for stages that compute each particle
+    /// alone at about the same cost: the particles its Gauss-Seidel sweeps update, so their data
+    /// stays in that core's cache. In a small model on two or more threads, thread 0 has the low
+    /// side and the separator, thread 1 the high side; else every thread has its share of every
+    /// colour (a colour is stored in grid order, so that is the same region of the cloth in each).
+    pub fn particles_of(
+        &self,
+        index: usize,
+        count: usize,
+    ) -> impl Iterator<Item = usize> + Clone + '_ {
+        let domains = self.domains.filter(|_| count > 1);
+        (self.colour_ranges.iter().enumerate()).flat_map(move |(k, r)| match domains {
+            Some(d) if d.owner(k) == index => r.clone(),
+            Some(_) => r.start..r.start,
+            None => {
+                let len = r.end - r.start;
+                r.start + len * index / count..r.start + len * (index + 1) / count
+            }
+        })
+    }
+
     /// Number of particles.
     pub fn particle_count(&self) -> usize {
         self.mass.len()
@@ -341,6 +474,20 @@ impl Model {
             next = r.end;
         }
         assert_eq!(next, n, "model: colour ranges must cover every particle");
+        if let Some(d) = &self.domains {
+            assert!(2 * d.colours <= self.colour_ranges.len(), "model: domains");
+            // Sides 0 and 1 are the domains, 2 the separator: only 0 + 1 makes 1.
+            let mut side = vec![2u8; n];
+            for s in 0..2 {
+                for r in d.side(&self.colour_ranges, s) {
+                    side[r.clone()].fill(s as u8);
+                }
+            }
+            assert!(
+                (self.springs.iter()).all(|s| side[s.a as usize] + side[s.b as usize] != 1),
+                "model: a spring joins the two domains"
+            );
+        }
         assert!(
             self.storage_of.iter().all(|&s| (s as usize) < n),
             "model: storage_of out of range"

@@ -121,7 +121,7 @@ impl Stages<'_> {
         // SAFETY (here and below): each particle's list and anchor are read and written by its
         // own thread only.
         if state.valid {
-            let stale = m.particles(&model.colour_ranges).any(|i| {
+            let stale = model.particles_of(m.index, m.count).any(|i| {
                 pc.lists_stale(unsafe { q(i).truncate().distance(anchors.get(i).truncate()) })
             });
             if stale {
@@ -143,7 +143,7 @@ impl Stages<'_> {
         }
         let g = grid.read().expect("not poisoned");
         let pushes = self.pushes.expect("particle collisions have pushes");
-        for i in m.particles(&model.colour_ranges) {
+        for i in model.particles_of(m.index, m.count) {
             unsafe {
                 if finding == Finding::Remake {
                     // A pinned particle is never pushed: its anchor alone is kept (others'
@@ -179,7 +179,8 @@ impl Stages<'_> {
     /// This thread's particles the simulation moves (pinned and attached ones are never
     /// written, so other threads may read them in any stage).
     fn free_particles<'m>(&'m self, m: &'m Member) -> impl Iterator<Item = usize> + 'm {
-        m.particles(&self.model.colour_ranges)
+        self.model
+            .particles_of(m.index, m.count)
             .filter(|&i| self.model.inv_mass[i] != 0.0)
     }
 
@@ -222,7 +223,7 @@ impl Stages<'_> {
         let (model, b) = (self.model, &self.b);
         let particles = model.particle_count();
         let mut left_out = 0;
-        m.balanced(&model.storage_of, |i| {
+        m.balanced(&model.work_order, |i| {
             if model.inv_mass[i] == 0.0 {
                 return;
             }
@@ -367,7 +368,7 @@ impl Stages<'_> {
                     .fetch_add(took, std::sync::atomic::Ordering::Relaxed);
             }
         };
-        m.balanced_after(&model.storage_of, place_ahead, |i| {
+        m.balanced_after(&model.work_order, place_ahead, |i| {
             if model.inv_mass[i] == 0.0 {
                 if let Some(c) = &self.focus_check {
                     // SAFETY: pinned and attached particles are never written in a stage.

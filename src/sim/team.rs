@@ -171,21 +171,6 @@ impl Member<'_> {
         start..end
     }
 
-    /// This thread's particles: its share of every colour range. A colour is stored in grid
-    /// order, so the shares are the same region of the cloth in every colour, and the stages
-    /// that use them give a thread the particles its Gauss-Seidel passes update: the data stays
-    /// in that core's cache.
-    pub fn particles<'r>(
-        &self,
-        colour_ranges: &'r [Range<usize>],
-    ) -> impl Iterator<Item = usize> + Clone + 'r {
-        let (index, count) = (self.index, self.count);
-        colour_ranges.iter().flat_map(move |r| {
-            let len = r.end - r.start;
-            r.start + len * index / count..r.start + len * (index + 1) / count
-        })
-    }
-
     /// Calls `each` for every particle of a stage in which each particle is computed alone, in
     /// the order `order` gives them (storage indices), sharing the work by what it costs: every
     /// thread starts on its own contiguous share of `order`, and a thread done with its share

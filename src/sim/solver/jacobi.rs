@@ -11,7 +11,7 @@ use crate::sim::team::Member;
 pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32) {
     // SAFETY: this stage reads Δ, target and projection and writes only scratch, each index
     // by one thread.
-    let mine = m.particles(&model.colour_ranges);
+    let mine = model.particles_of(m.index, m.count);
     {
         let (q, target, projection) = unsafe {
             (

@@ -64,6 +64,8 @@ pub struct Solver {
 /// colour (their other ends have later colours). The barrier between the local step and the
 /// first colour goes: one of the four stages per iteration of P, H or the blanket. The same
 /// numbers as the shared local step: each spring's projection does not depend on who makes it.
+/// A small model in two domains gives each thread the springs its side reads instead (see
+/// [`Owned::by_domain`]).
 #[derive(Clone, Debug)]
 struct Owned {
     threads: usize,
@@ -77,6 +79,27 @@ struct Owned {
 
 impl Owned {
     fn new(model: &Model, threads: usize) -> Owned {
+        match &model.domains {
+            Some(_) => Owned::by_domain(model, threads),
+            None => Owned::by_colour(model, threads),
+        }
+    }
+
+    /// A model in two domains, swept by two threads from the first colour to the last without a
+    /// barrier: a spring with an end on the high side goes to thread 1, which sweeps that side;
+    /// every other one to thread 0 (the separator's own springs are read after a barrier).
+    fn by_domain(model: &Model, threads: usize) -> Owned {
+        let high = model.high_side();
+        let mut lists = vec![Vec::new(); threads];
+        for (k, s) in model.springs.iter().enumerate() {
+            let t = usize::from(high[s.a as usize] || high[s.b as usize]);
+            lists[t].push(k as u32);
+        }
+        Owned::from_lists(model, threads, lists)
+    }
+
+    /// Every spring to the thread that sweeps its end of the lower colour.
+    fn by_colour(model: &Model, threads: usize) -> Owned {
         // Particle p's colour range.
         let range = |p: usize| {
             (model.colour_ranges.iter())
@@ -104,6 +127,10 @@ impl Owned {
             };
             lists[owner(first)].push(k as u32);
         }
+        Owned::from_lists(model, threads, lists)
+    }
+
+    fn from_lists(model: &Model, threads: usize, lists: Vec<Vec<u32>>) -> Owned {
         let mut start = vec![0];
         let mut index = Vec::with_capacity(model.springs.len());
         for list in lists {
@@ -323,8 +350,7 @@ const PROJECT_BATCH: usize = 8;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::garment::Garment;
-    use crate::scene::Scene;
+    use crate::garment::test_sheet;
 
     /// Every spring goes to exactly one thread, and each thread owns every spring its share of
     /// the first colour reads, with the axis stencil and with shear and bend springs (more
@@ -335,18 +361,10 @@ mod tests {
             r#"{ "stretch": 100 }"#,
             r#"{ "stretch": 100, "shear": 10, "bend": 1 }"#,
         ] {
-            let scene = Scene::parse(
-                &format!(
-                    r#"{{ "garments": [{{ "resolution": [9, 7], "size": [1, 1],
-                         "stiffness": {stiffness} }}] }}"#
-                ),
-                "<test>",
-            )
-            .expect("scene");
-            let garment = Garment::build("g".into(), &scene.garments[0]);
+            let garment = test_sheet([9, 7], stiffness);
             let model = Model::new(std::slice::from_ref(&garment));
             for threads in 2..=5 {
-                let owned = Owned::new(&model, threads);
+                let owned = Owned::by_colour(&model, threads);
                 let mut times = vec![0; model.springs.len()];
                 for t in 0..threads {
                     let (springs, index) = owned.of(t);
@@ -372,6 +390,37 @@ mod tests {
                     "{stiffness}, {threads} threads"
                 );
             }
+        }
+    }
+
+    /// In a model of two domains, every spring goes to exactly one thread, and each of the two
+    /// sweeping threads owns every spring its side's particles read.
+    #[test]
+    fn each_domain_projects_every_spring_its_side_reads() {
+        let garment = test_sheet([12, 9], r#"{ "stretch": 100, "shear": 10, "bend": 1 }"#);
+        let model = Model::new(std::slice::from_ref(&garment));
+        let domains = model.domains.as_ref().expect("a small model has domains");
+        for threads in 2..=4 {
+            let owned = Owned::new(&model, threads);
+            let mut times = vec![0; model.springs.len()];
+            for t in 0..threads {
+                let (_, index) = owned.of(t);
+                for &k in index {
+                    times[k as usize] += 1;
+                }
+                if t < 2 {
+                    for p in domains
+                        .side(&model.colour_ranges, t)
+                        .iter()
+                        .flat_map(|r| r.clone())
+                    {
+                        for slot in model.slots(p) {
+                            assert!(index.contains(&(slot.spring_index() as u32)));
+                        }
+                    }
+                }
+            }
+            assert!(times.iter().all(|&n| n == 1), "{threads} threads");
         }
     }
 }

@@ -12,7 +12,7 @@ use glam::Vec4;
 /// One Jacobi iteration over every particle.
 pub fn iterate(m: &Member, model: &Model, b: &Buffers, omega: f32) {
     // SAFETY: this stage reads x and Δ and writes only scratch, each index by one thread.
-    let mine = m.particles(&model.colour_ranges);
+    let mine = model.particles_of(m.index, m.count);
     {
         let (x, q) = unsafe { (b.x.read_all(), b.delta.read_all()) };
         for i in mine.clone() {
