@@ -124,6 +124,10 @@ pub struct Meta {
     /// fields: none).
     #[serde(default)]
     pub force_work_bits: u64,
+    /// The particles' storage order ([`crate::sim::model::Model::layout`], hex; absent in
+    /// checkpoints of drape before it recorded it).
+    #[serde(default)]
+    pub layout: Option<String>,
     pub progress: Progress,
 }
 
@@ -311,6 +315,7 @@ impl Writer {
             driven_speed_bits: snapshot.driven_speed.to_bits(),
             torn_springs: snapshot.torn_springs,
             force_work_bits: snapshot.force_work.to_bits(),
+            layout: snapshot.layout.map(|l| format!("{l:016x}")),
             progress: progress.clone(),
         };
         let bytes = encode(&meta, snapshot);
@@ -451,6 +456,10 @@ fn decode(bytes: &[u8]) -> std::result::Result<Loaded, String> {
         force_work: f64::from_bits(meta.force_work_bits),
         torn,
         nearby,
+        layout: match &meta.layout {
+            Some(hex) => Some(u64::from_str_radix(hex, 16).map_err(|e| format!("layout: {e}"))?),
+            None => None,
+        },
     };
     Ok(Loaded { meta, snapshot })
 }
@@ -606,6 +615,7 @@ mod tests {
                 tethers: false,
             }],
             nearby: vec![[7; crate::collide::shell::NEARBY]; 3],
+            layout: Some(0x0123_4567_89ab_cdef),
         }
     }
 
@@ -622,6 +632,7 @@ mod tests {
             driven_speed_bits: 0.1f32.to_bits(),
             torn_springs: 2,
             force_work_bits: 0.5f64.to_bits(),
+            layout: Some("0123456789abcdef".into()),
             progress: Progress {
                 frame_ms: vec![0.1 + 0.2, 1e-300],
                 ..Progress::default()

@@ -35,6 +35,9 @@ pub struct Snapshot {
     /// Each garment particle's nearby shell particles, per shell (shell-major; empty with one
     /// collision pass).
     pub nearby: Vec<crate::collide::shell::Nearby>,
+    /// The storage order the state is in ([`Model::layout`](super::model::Model::layout)); None
+    /// in checkpoints written before drape recorded it (models laid out colour by colour).
+    pub layout: Option<u64>,
 }
 
 /// What tearing has left of one garment: its springs (as particle pairs, in order) and faces.
@@ -73,6 +76,7 @@ impl Simulation {
             force_work: self.fields.work,
             torn,
             nearby: self.nearby_lists().to_vec(),
+            layout: Some(self.model.layout()),
         }
     }
 
@@ -81,6 +85,19 @@ impl Simulation {
     /// and the colliders' poses. Errors say what does not fit (another garment layout).
     pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), String> {
         let n = self.model.particle_count();
+        // Before drape recorded the layout, every model was stored colour by colour, as a
+        // larger one still is; a small one now is not.
+        let layout_fits = match snapshot.layout {
+            Some(layout) => layout == self.model.layout(),
+            None => self.model.domains.is_none(),
+        };
+        if !layout_fits {
+            return Err(
+                "its particles are stored in another order (a checkpoint of another \
+                        drape version): bake again without --resume"
+                    .into(),
+            );
+        }
         let elapsed_substeps = self.elapsed_substeps_of(snapshot)?;
         if snapshot.positions.len() != n || snapshot.velocities.len() != n {
             return Err(format!(
@@ -172,5 +189,36 @@ impl Simulation {
             ));
         }
         Ok(snapshot.elapsed_substeps / theirs * ours)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::Scene;
+    use crate::sim::Simulation;
+
+    /// A state fits only a model of its layout: another layout's is refused, and so is one from
+    /// before drape recorded layouts in a small model (stored in two sides since); a larger
+    /// model's such state still fits.
+    #[test]
+    fn a_state_of_another_layout_is_refused() {
+        for (resolution, small) in [([20, 13], true), ([41, 29], false)] {
+            let scene = Scene::parse(
+                &format!(
+                    r#"{{ "garments": [{{ "resolution": {resolution:?}, "size": [1, 1] }}] }}"#
+                ),
+                "<test>",
+            )
+            .expect("scene");
+            let mut sim = Simulation::new(&scene).expect("simulation");
+            assert_eq!(sim.model().domains.is_some(), small);
+            let mut s = sim.snapshot();
+            assert!(sim.restore(&s).is_ok());
+            s.layout = s.layout.map(|l| l ^ 1);
+            let refused = sim.restore(&s).expect_err("another layout");
+            assert!(refused.contains("another order"), "{refused}");
+            s.layout = None;
+            assert_eq!(sim.restore(&s).is_ok(), !small, "{resolution:?}");
+        }
     }
 }
