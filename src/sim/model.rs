@@ -392,18 +392,12 @@ impl Model {
     /// FNV-1a of the storage order (each export-order particle's storage index) and the colour
     /// ranges: states of one layout fit only models of that layout (checkpoints).
     pub fn layout(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        let words = (self.storage_of.iter().copied()).chain(
-            self.colour_ranges
-                .iter()
-                .flat_map(|r| [r.start as u32, r.end as u32]),
-        );
-        for w in words {
-            for b in w.to_le_bytes() {
-                h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-        h
+        use crate::character::cache::{fnv, FNV_OFFSET};
+        let ranges: Vec<u32> = (self.colour_ranges.iter())
+            .flat_map(|r| [r.start as u32, r.end as u32])
+            .collect();
+        let h = fnv(FNV_OFFSET, bytemuck::cast_slice(&self.storage_of));
+        fnv(h, bytemuck::cast_slice(&ranges))
     }
 
     /// Per particle (storage order), whether it is in a small model's high domain (all false in
