@@ -50,6 +50,19 @@ impl FocusCheck<'_> {
     }
 }
 
+/// A patched substep's movers ([`crate::collide::particles::Patch`]).
+pub(super) struct Movers<'a> {
+    /// 1 for a particle that has moved too far for the lists (written by its thread when the
+    /// lists are checked, read by all after).
+    pub(super) moving: Shared<u8>,
+    /// How many particles are movers in this substep.
+    pub(super) count: &'a std::sync::atomic::AtomicU32,
+    /// Set by a mover's thread on each particle the mover touches; cleared by the particle's.
+    pub(super) touched: &'a [std::sync::atomic::AtomicBool],
+    /// The movers, ascending (made by the leader).
+    pub(super) list: &'a RwLock<Vec<u32>>,
+}
+
 /// The per-particle stages of a substep, with what they read and write.
 pub(super) struct Stages<'a> {
     pub(super) model: &'a Model,
@@ -73,6 +86,8 @@ pub(super) struct Stages<'a> {
     /// substeps reused lists.
     pub(super) particle_lists: bool,
     pub(super) lists_reused: &'a std::sync::atomic::AtomicU64,
+    /// The particles that moved too far for the lists, for a patched substep.
+    pub(super) movers: Movers<'a>,
     /// Nearby shell particles of each garment particle, per shell (empty with one pass).
     pub(super) nearby: Shared<crate::collide::shell::Nearby>,
     /// How many entries each nearby list holds.
@@ -107,41 +122,74 @@ pub(super) struct Stages<'a> {
 impl Stages<'_> {
     /// Particle–particle collisions at q = x + Δ, the pairs found as [`ListState`] says: from
     /// the neighbour lists while no particle has moved too far from where they were made
-    /// ([`ParticleCollisions::lists_stale`]); else one thread sorts q into the grid and every
-    /// thread makes its particles' lists again, or finds their pairs in the grid directly.
-    /// Every thread then computes its particles' pushes (added by `finish`).
+    /// ([`ParticleCollisions::lists_stale`]); from them while the particles that have (the
+    /// movers) are few, the movers searching the lists' grid and marking the particles they
+    /// touch ([`Finding::Patch`]); else one thread sorts q into the grid and every thread makes
+    /// its particles' lists again, or finds their pairs in the grid directly. Every thread then
+    /// computes its particles' pushes (added by `finish`).
     pub(super) fn particle_collisions(&self, m: &Member, pc: &ParticleCollisions) {
         use std::sync::atomic::Ordering::Relaxed;
         let (model, b, grid) = (self.model, &self.b, self.grid);
         // SAFETY: between two syncs nobody writes x or Δ.
         let (x, d) = unsafe { (b.x.read_all(), b.delta.read_all()) };
         let q = |i: usize| x[i] + d[i];
-        let (lists, anchors) = (&self.lists, &self.anchors);
+        let (lists, anchors, movers) = (&self.lists, &self.anchors, &self.movers);
         let state = *self.list_state.lock().expect("not poisoned");
-        // SAFETY (here and below): each particle's list and anchor are read and written by its
-        // own thread only.
+        // SAFETY (here and below): each particle's list, anchor and mover flag are written by
+        // its own thread only, and the flags read by others after a sync.
         if state.valid {
-            let stale = model.particles_of(m.index, m.count).any(|i| {
-                pc.lists_stale(unsafe { q(i).truncate().distance(anchors.get(i).truncate()) })
-            });
-            if stale {
+            let mut moved = 0;
+            for i in model.particles_of(m.index, m.count) {
+                let far = unsafe { q(i).truncate().distance(anchors.get(i).truncate()) };
+                let far = pc.lists_stale(far);
+                unsafe { movers.moving.set(i, far as u8) };
+                moved += far as u32;
+            }
+            if moved > 0 {
+                movers.count.fetch_add(moved, Relaxed);
                 self.lists_stale.store(true, Relaxed);
             }
             m.sync();
         }
         let stale = self.lists_stale.load(Relaxed);
+        let moved = movers.count.load(Relaxed);
         let finding = match self.particle_lists {
-            true => state.finding(stale),
+            true => state.finding(stale, moved, model.particle_count()),
             false => Finding::Direct,
         };
-        if finding != Finding::Reuse {
-            if m.leads() {
-                let remake = finding == Finding::Remake;
-                pc.build(q, &mut grid.write().expect("not poisoned"), remake);
+        let moving = |j: usize| unsafe { movers.moving.get(j) } != 0;
+        match finding {
+            Finding::Reuse => {}
+            Finding::Patch => {
+                if m.leads() {
+                    let mut list = movers.list.write().expect("not poisoned");
+                    list.clear();
+                    let all = 0..model.particle_count() as u32;
+                    list.extend(all.filter(|&i| moving(i as usize)));
+                }
+                let g = grid.read().expect("not poisoned");
+                for i in model.particles_of(m.index, m.count).filter(|&i| moving(i)) {
+                    pc.touched_by_mover(i, q, &moving, &g, |j| {
+                        movers.touched[j].store(true, Relaxed)
+                    });
+                }
+                drop(g);
+                m.sync();
             }
-            m.sync();
+            Finding::Remake | Finding::Direct => {
+                if m.leads() {
+                    let remake = finding == Finding::Remake;
+                    pc.build(q, &mut grid.write().expect("not poisoned"), remake);
+                }
+                m.sync();
+            }
         }
         let g = grid.read().expect("not poisoned");
+        let mover_list = movers.list.read().expect("not poisoned");
+        let patch = crate::collide::particles::Patch {
+            moving: &moving,
+            movers: &mover_list,
+        };
         let pushes = self.pushes.expect("particle collisions have pushes");
         for i in model.particles_of(m.index, m.count) {
             unsafe {
@@ -158,19 +206,23 @@ impl Stages<'_> {
                 let list = lists.get(i);
                 let near = match finding {
                     Finding::Direct => Near::Grid,
+                    Finding::Patch if movers.touched[i].swap(false, Relaxed) || moving(i) => {
+                        Near::Patched(&list, anchors.get(i), patch)
+                    }
                     _ => Near::List(&list, anchors.get(i)),
                 };
                 pushes.set(i, pc.push_out(i, near, (|k| x[k], q), &model.inv_mass, &g));
             }
         }
-        drop(g);
+        drop((g, mover_list));
         m.sync();
-        // Every thread has read the state and the flag; none reads them again before the next
-        // substep's stage, after `finish`'s sync.
+        // Every thread has read the state, the flag and the count; none reads them again before
+        // the next substep's stage, after `finish`'s sync.
         if m.leads() && self.particle_lists {
             *self.list_state.lock().expect("not poisoned") = state.after(finding, stale);
             self.lists_stale.store(false, Relaxed);
-            if finding == Finding::Reuse {
+            movers.count.store(0, Relaxed);
+            if matches!(finding, Finding::Reuse | Finding::Patch) {
                 self.lists_reused.fetch_add(1, Relaxed);
             }
         }

@@ -5,15 +5,15 @@
 
 use super::drivers::Drivers;
 use super::integrate::Verlet;
-use super::stages::{FocusCheck, Stages};
+use super::stages::{FocusCheck, Movers, Stages};
 use super::state::State;
 use super::team::Shared;
 use super::{solver, Model};
-use crate::collide::particles::{Grid, List, ListState, ParticleCollisions};
+use crate::collide::particles::{Grid, List, ListState, ParticleCollisions, PATCH_MOVERS};
 use crate::collide::shell::{listed, Nearby, NEARBY};
 use crate::collide::Collider;
 use glam::Vec4;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::RwLock;
 
 /// Buffers and pass caches of the CPU substeps.
@@ -36,6 +36,12 @@ pub(super) struct Workspace {
     anchors: Vec<Vec4>,
     /// Set by the substep whose particles moved too far for the lists.
     lists_stale: AtomicBool,
+    /// A patched substep's movers: a flag per particle, their count, the particles they touch,
+    /// and their list ([`crate::collide::particles::Patch`]).
+    moving: Vec<u8>,
+    movers: AtomicU32,
+    touched: Vec<AtomicBool>,
+    mover_list: RwLock<Vec<u32>>,
     /// How the substeps have been finding the pairs.
     list_state: std::sync::Mutex<ListState>,
     /// Whether particle collisions keep neighbour lists (on by default; off, every substep
@@ -105,6 +111,12 @@ impl Workspace {
             lists: vec![List::EMPTY; if particles.is_some() { n } else { 0 }],
             anchors: vec![Vec4::INFINITY; if particles.is_some() { n } else { 0 }],
             lists_stale: AtomicBool::new(false),
+            moving: vec![0; if particles.is_some() { n } else { 0 }],
+            movers: AtomicU32::new(0),
+            touched: (0..if particles.is_some() { n } else { 0 })
+                .map(|_| AtomicBool::new(false))
+                .collect(),
+            mover_list: RwLock::new(Vec::with_capacity(PATCH_MOVERS as usize)),
             list_state: Default::default(),
             particle_lists_enabled: true,
             lists_reused: AtomicU64::new(0),
@@ -193,6 +205,12 @@ impl Workspace {
             list_state: &self.list_state,
             particle_lists: self.particle_lists_enabled,
             lists_reused: &self.lists_reused,
+            movers: Movers {
+                moving: Shared::new(&mut self.moving),
+                count: &self.movers,
+                touched: &self.touched,
+                list: &self.mover_list,
+            },
             nearby: Shared::new(&mut self.nearby),
             listed: Shared::new(&mut self.listed),
             listed_gap: Shared::new(&mut self.listed_gap),

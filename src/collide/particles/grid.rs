@@ -15,9 +15,11 @@ pub struct Grid {
     pub items: Vec<u32>,
     /// Bucket of each particle.
     pub bucket: Vec<u32>,
-    /// The position of each particle of `items`, in `items`' order (a bucket's candidates are
-    /// read side by side, not scattered over the model).
-    pub points: Vec<Vec4>,
+    /// The position of each particle of `items`, in `items`' order, one coordinate a vector (a
+    /// bucket's candidates are read side by side, four at a time: [`ParticleCollisions::list`]).
+    pub xs: Vec<f32>,
+    pub ys: Vec<f32>,
+    pub zs: Vec<f32>,
     /// Where the sort writes the next particle of each bucket (kept to spare an allocation).
     pub(super) cursor: Vec<u32>,
     /// 1 / cell width it was built with: twice a list's reach for the lists, twice a diameter
@@ -36,7 +38,9 @@ impl ParticleCollisions {
             start: vec![0; self.table + 1],
             items: vec![0; self.garment.len()],
             bucket: vec![0; self.garment.len()],
-            points: vec![Vec4::ZERO; self.garment.len()],
+            xs: vec![0.0; self.garment.len()],
+            ys: vec![0.0; self.garment.len()],
+            zs: vec![0.0; self.garment.len()],
             cursor: vec![0; self.table],
             inv_cell: self.inv_cell(),
         }
@@ -79,7 +83,8 @@ impl ParticleCollisions {
             let at = grid.cursor[b] as usize;
             grid.cursor[b] += 1;
             grid.items[at] = i as u32;
-            grid.points[at] = q(i);
+            let p = q(i);
+            (grid.xs[at], grid.ys[at], grid.zs[at]) = (p.x, p.y, p.z);
         }
     }
 

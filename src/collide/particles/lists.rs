@@ -2,8 +2,8 @@
 //! substeps while they stay valid, and the state that chooses between remaking them and finding
 //! the pairs directly.
 
-use super::grid::Grid;
-use super::ParticleCollisions;
+use super::grid::{Grid, NEAR};
+use super::{ParticleCollisions, PATCH_MOVERS, PATCH_SHARE};
 use glam::Vec4;
 
 /// How far past a diameter a neighbour list reaches, in diameters. A wider margin keeps the
@@ -26,6 +26,9 @@ pub enum Finding {
     Reuse,
     /// The lists made again at q, then used.
     Remake,
+    /// The lists kept, some particles having moved too far for them: those movers' pairs found
+    /// apart ([`super::patch`]).
+    Patch,
     /// In a grid built at q, without lists: where the cloth moves too fast for lists to last.
     Direct,
 }
@@ -48,10 +51,13 @@ pub struct ListState {
 }
 
 impl ListState {
-    /// This substep's way, given whether valid lists were found `stale` at q.
-    pub fn finding(&self, stale: bool) -> Finding {
+    /// This substep's way, given whether valid lists were found `stale` at q, by how many
+    /// `movers` of the model's `particles`.
+    pub fn finding(&self, stale: bool, movers: u32, particles: usize) -> Finding {
+        let few = movers <= PATCH_MOVERS && movers as usize * PATCH_SHARE as usize <= particles;
         match (self.valid, stale) {
             (true, false) => Finding::Reuse,
+            (true, true) if few => Finding::Patch,
             // Stale before they served once more than the substep that made them.
             (true, true) if self.reused == 0 => Finding::Direct,
             (false, _) if self.direct_left > 0 => Finding::Direct,
@@ -62,19 +68,17 @@ impl ListState {
     /// The state after a substep that went `finding`, having found valid lists `stale`.
     pub fn after(self, finding: Finding, stale: bool) -> ListState {
         match finding {
-            Finding::Reuse => ListState {
+            Finding::Reuse | Finding::Patch => ListState {
                 reused: self.reused + 1,
                 ..self
             },
             Finding::Remake => ListState {
                 valid: true,
-                reused: 0,
-                direct_left: 0,
+                ..ListState::default()
             },
             Finding::Direct if self.valid && stale => ListState {
-                valid: false,
-                reused: 0,
                 direct_left: DIRECT_RUN - 1,
+                ..ListState::default()
             },
             Finding::Direct => ListState {
                 direct_left: self.direct_left.saturating_sub(1),
@@ -119,8 +123,7 @@ impl ParticleCollisions {
     /// The neighbour list of particle `i` at `p`, from `grid` built at the same positions.
     pub fn list(&self, i: usize, p: Vec4, grid: &Grid) -> List {
         let reach_squared = self.list_reach() * self.list_reach();
-        let within = |k: usize| (p - grid.points[k]).length_squared();
-        let Some((near, count)) = self.gather(p, grid, reach_squared, within) else {
+        let Some((near, count)) = self.gather_by_four(p, grid, reach_squared) else {
             return List::OVERFLOW_LIST;
         };
         let mut list = List::EMPTY;
@@ -137,5 +140,42 @@ impl ParticleCollisions {
         }
         list.ids[..list.len as usize].sort_unstable();
         list
+    }
+
+    /// [`Self::gather`] within `reach_squared` of `p` by the positions the grid was built at,
+    /// four candidates at a time (a list is made from about 64 candidates, 9 of them near).
+    fn gather_by_four(
+        &self,
+        p: Vec4,
+        grid: &Grid,
+        reach_squared: f32,
+    ) -> Option<([u32; NEAR], usize)> {
+        let (buckets, seen) = self.block(p, grid);
+        let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
+        let reach = Vec4::splat(reach_squared);
+        let mut near = [0u32; NEAR];
+        let mut count = 0usize;
+        for &b in &buckets[..seen] {
+            let (start, end) = (grid.start[b] as usize, grid.start[b + 1] as usize);
+            let (items, xs) = (&grid.items[start..end], &grid.xs[start..end]);
+            let (ys, zs) = (&grid.ys[start..end], &grid.zs[start..end]);
+            let whole = items.len() / 4 * 4;
+            for k in (0..whole).step_by(4) {
+                let dx = Vec4::from_slice(&xs[k..k + 4]) - px;
+                let dy = Vec4::from_slice(&ys[k..k + 4]) - py;
+                let dz = Vec4::from_slice(&zs[k..k + 4]) - pz;
+                let within = (dx * dx + dy * dy + dz * dz).cmplt(reach).bitmask() as usize;
+                for lane in 0..4 {
+                    near[count.min(NEAR - 1)] = items[k + lane];
+                    count += within >> lane & 1;
+                }
+            }
+            for k in whole..items.len() {
+                let d = Vec4::new(xs[k], ys[k], zs[k], 0.0) - p.truncate().extend(0.0);
+                near[count.min(NEAR - 1)] = items[k];
+                count += (d.length_squared() < reach_squared) as usize;
+            }
+        }
+        (count < NEAR).then_some((near, count))
     }
 }

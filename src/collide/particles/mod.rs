@@ -19,22 +19,27 @@
 //! sides of a particle's nearest cell corner hold all of them (a counting sort). The lists stay
 //! valid until some particle has moved [`REBUILD_AT`] of the margin from where they were made (no
 //! pair can then have closed from beyond a list's reach to within a diameter), and are made
-//! again then: on cloth resting on a body most substeps reuse them, and most lists are empty (a
-//! flat sheet's particles two steps apart are two diameters apart). A list longer than
+//! again then, unless few particles have (the movers): then the lists are kept and the movers'
+//! pairs found apart ([`patch`]), to the same pairs. On cloth resting on a body most substeps
+//! reuse them, and most lists are empty (a flat sheet's particles two steps apart are two
+//! diameters apart). A list longer than
 //! [`LIST_CAPACITY`] is walked in the grid instead. The GPU sorts into a grid of cells two
 //! diameters wide every substep and walks it (`particles.wgsl`).
 //!
 //! Here: the collisions' static data and the push; the grid and its walks in `grid.rs`; the
-//! lists and the choice between keeping, remaking and going without them in `lists.rs`; unit
-//! tests against a brute force over every pair in `tests.rs`.
+//! lists and the choice between keeping, patching, remaking and going without them in
+//! `lists.rs`; the movers' search in `patch.rs`; unit tests against a brute force over every
+//! pair in `tests.rs`.
 
 mod grid;
 mod lists;
+mod patch;
 #[cfg(test)]
 mod tests;
 
 pub use grid::Grid;
 pub use lists::{Finding, List, ListState, DIRECT_RUN, LIST_CAPACITY, LIST_MARGIN, REBUILD_AT};
+pub use patch::{Patch, PATCH_MOVERS, PATCH_SHARE};
 
 use crate::garment::Garment;
 use glam::Vec4;
@@ -60,6 +65,9 @@ pub enum Near<'a> {
     List(&'a List, Vec4),
     /// The grid, built this substep at q to find the pairs directly.
     Grid,
+    /// Its list, kept past the movers of a patched substep, with its anchor ([`patch`]): for a
+    /// mover or a particle a mover touches (others take [`Near::List`]).
+    Patched(&'a List, Vec4, Patch<'a>),
 }
 
 /// Lattice steps within which two particles of one garment never collide (`particles.wgsl`
@@ -93,11 +101,12 @@ impl ParticleCollisions {
 
     /// Memory the CPU backend's particle collisions take for `particles` particles [bytes]:
     /// their static data (garment and lattice cell), the grid (items, buckets, positions and
-    /// the table's starts and cursors), the neighbour lists with their anchors, and the pushes.
+    /// the table's starts and cursors), the neighbour lists with their anchors, the pushes, and
+    /// a patched substep's movers (a flag each for moving and touched, and their list).
     pub fn memory_bytes(particles: usize) -> usize {
         let table = (2 * particles).next_power_of_two().max(16);
-        let per_particle = 4 + 12 + (4 + 4 + 16) + (std::mem::size_of::<List>() + 16) + 16;
-        particles * per_particle + (2 * table + 1) * 4
+        let per_particle = 4 + 12 + (4 + 4 + 12) + (std::mem::size_of::<List>() + 16) + 16 + 2;
+        particles * per_particle + (2 * table + 1) * 4 + PATCH_MOVERS as usize * 4
     }
 
     /// Default radius for `garments`: half the smallest rest spacing, so neighbours at rest touch.
@@ -197,6 +206,12 @@ impl ParticleCollisions {
                 None => Some(anchor),
             },
             Near::Grid => Some(qi),
+            Near::Patched(list, anchor, patch) => {
+                self.patched_candidates(i, (list, anchor), &q, patch, grid)
+                    .into_iter()
+                    .for_each(|j| meet(j as usize));
+                None
+            }
         };
         if let Some(p) = around {
             // (Reading the direct grid's own copy of q instead was slower on box_stack.)

@@ -161,21 +161,46 @@ fn overflowing(n: usize) {
 
 #[test]
 fn lists_that_go_stale_at_once_give_way_to_direct_search_for_a_run() {
+    // Stale by more movers than a patch takes (1 000 particles, 100 movers).
+    let (n, many) = (1000, 100);
     let made = ListState::default().after(Finding::Remake, false);
-    assert_eq!(ListState::default().finding(false), Finding::Remake);
-    assert_eq!(made.finding(false), Finding::Reuse);
+    assert_eq!(ListState::default().finding(false, 0, n), Finding::Remake);
+    assert_eq!(made.finding(false, 0, n), Finding::Reuse);
     // Stale at the first substep after they were made: direct for DIRECT_RUN substeps,
     // then lists again.
-    assert_eq!(made.finding(true), Finding::Direct);
+    assert_eq!(made.finding(true, many, n), Finding::Direct);
     let mut state = made.after(Finding::Direct, true);
     for _ in 1..DIRECT_RUN {
-        assert_eq!(state.finding(false), Finding::Direct);
+        assert_eq!(state.finding(false, 0, n), Finding::Direct);
         state = state.after(Finding::Direct, false);
     }
-    assert_eq!(state.finding(false), Finding::Remake);
+    assert_eq!(state.finding(false, 0, n), Finding::Remake);
     // Lists that served a substep are made again when stale.
     let served = made.after(Finding::Reuse, false);
-    assert_eq!(served.finding(true), Finding::Remake);
+    assert_eq!(served.finding(true, many, n), Finding::Remake);
+}
+
+#[test]
+fn lists_stale_by_a_few_movers_are_patched_until_they_are_many() {
+    let n = 1000;
+    let few = (n / PATCH_SHARE as usize) as u32;
+    let made = ListState::default().after(Finding::Remake, false);
+    for state in [made, made.after(Finding::Reuse, false)] {
+        assert_eq!(state.finding(true, 1, n), Finding::Patch);
+        assert_eq!(state.finding(true, few, n), Finding::Patch);
+        assert_ne!(state.finding(true, few + 1, n), Finding::Patch);
+    }
+    // A patched substep is one more the lists served; never more movers than PATCH_MOVERS.
+    let patched = made.after(Finding::Patch, true);
+    assert_eq!(patched.finding(true, few + 1, n), Finding::Remake);
+    let large = 100 * PATCH_MOVERS as usize * PATCH_SHARE as usize;
+    assert_eq!(patched.finding(true, PATCH_MOVERS, large), Finding::Patch);
+    assert_eq!(
+        patched.finding(true, PATCH_MOVERS + 1, large),
+        Finding::Remake
+    );
+    // Without lists, nothing to patch.
+    assert_ne!(ListState::default().finding(true, 1, n), Finding::Patch);
 }
 
 #[test]
@@ -209,20 +234,77 @@ fn an_overlap_without_a_crossing_is_pushed_apart_along_the_start_separation() {
 
 #[test]
 fn memory_bytes_counts_the_buffers_a_simulation_allocates() {
-    // The static data and a grid as built, and per particle a list, an anchor and a push (as
-    // `sim::Workspace` allocates them).
+    // The static data and a grid as built, per particle a list, an anchor, a push and two
+    // flags, and the movers' list (as `sim::Workspace` allocates them).
     for n in [1, 300, 4148] {
         let (pc, _) = cloud(n, 1.0, Vec4::ZERO, 0.01);
         let grid = pc.grid();
         let allocated = pc.garment.len() * 4
             + pc.cell.len() * 12
             + (grid.start.len() + grid.items.len() + grid.bucket.len() + grid.cursor.len()) * 4
-            + grid.points.len() * 16
-            + n * (std::mem::size_of::<List>() + 16 + 16);
+            + (grid.xs.len() + grid.ys.len() + grid.zs.len()) * 4
+            + n * (std::mem::size_of::<List>() + 16 + 16)
+            + n * 2
+            + PATCH_MOVERS as usize * 4;
         assert_eq!(
             ParticleCollisions::memory_bytes(n),
             allocated,
             "{n} particles"
         );
+    }
+}
+
+#[test]
+fn lists_patched_past_a_few_movers_push_as_the_brute_force() {
+    // Lists made at `before`; then most particles moved by just under the rebuild threshold,
+    // and a few (the movers) by up to four diameters, some onto others. A patched substep (the
+    // movers found apart, the particles they touch marked) gives the brute force's pushes to
+    // the bit, for every particle, with lists kept and with lists too long to keep.
+    let radius = 0.01;
+    for (n, side) in [(250, 0.14), (80, 0.03)] {
+        let (pc, before) = cloud(n, side, Vec4::new(0.2, -0.1, 0.4, 0.0), radius);
+        let limit = REBUILD_AT * LIST_MARGIN * pc.diameter();
+        let (_, directions) = cloud(n, 2.0, Vec4::ZERO, radius);
+        let q: Vec<Vec4> = (before.iter().zip(&directions).enumerate())
+            .map(|(i, (p, d))| match i % 9 {
+                0 => before[(i * 7 + 3) % n] + d.normalize() * 0.3 * pc.diameter(),
+                4 => *p + d.normalize() * (1.5 + (i % 5) as f32) * pc.diameter() * 0.5,
+                _ => *p + d.normalize() * 0.999 * limit,
+            })
+            .collect();
+        let moving: Vec<bool> = (q.iter().zip(&before))
+            .map(|(a, b)| pc.lists_stale(a.truncate().distance(b.truncate())))
+            .collect();
+        let movers: Vec<u32> = (0..n as u32).filter(|&i| moving[i as usize]).collect();
+        assert!(movers.len() >= n / 9, "{} movers", movers.len());
+        let mut grid = pc.grid();
+        pc.build(|i| before[i], &mut grid, true);
+        let lists: Vec<List> = (0..n).map(|i| pc.list(i, before[i], &grid)).collect();
+        let (x, at) = (|k: usize| before[k], |k: usize| q[k]);
+        let is_mover = |j: usize| moving[j];
+        let mut touched = vec![false; n];
+        for &i in &movers {
+            pc.touched_by_mover(i as usize, at, &is_mover, &grid, |j| touched[j] = true);
+        }
+        assert!(
+            touched.iter().any(|&t| t),
+            "no mover touches a particle that stayed"
+        );
+        let patch = Patch {
+            moving: &is_mover,
+            movers: &movers,
+        };
+        let inv_mass = vec![1.0; n];
+        let expected = brute_pushes(&pc, &before, &q);
+        let touching = expected.iter().filter(|p| **p != Vec4::ZERO).count();
+        assert!(touching > n / 3, "{touching} particles touch another");
+        for i in 0..n {
+            let near = match moving[i] || touched[i] {
+                true => Near::Patched(&lists[i], before[i], patch),
+                false => Near::List(&lists[i], before[i]),
+            };
+            let got = pc.push_out(i, near, (x, at), &inv_mass, &grid);
+            assert_eq!(got, expected[i], "particle {i} of {n}, mover {}", moving[i]);
+        }
     }
 }
