@@ -7,9 +7,10 @@ use super::{ParticleCollisions, PATCH_MOVERS, PATCH_SHARE};
 use glam::Vec4;
 
 /// How far past a diameter a neighbour list reaches, in diameters. A wider margin keeps the
-/// lists valid for more substeps and makes them longer (P: 0.5 measured best, see
+/// lists valid for more substeps and makes them longer and slower to make (0.75 measured best
+/// on P and the character scenes once a few movers no longer make them again; 0.5 before: see
 /// `docs/benchmarks.md`).
-pub const LIST_MARGIN: f32 = 0.5;
+pub const LIST_MARGIN: f32 = 0.75;
 
 /// The share of the margin any particle may move from where the lists were made before they
 /// are made again: two particles closing on each other then close by 0.9 of the margin at most,
