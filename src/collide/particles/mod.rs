@@ -22,9 +22,9 @@
 //! again then, unless few particles have (the movers): then the lists are kept and the movers'
 //! pairs found apart ([`patch`]), to the same pairs. On cloth resting on a body most substeps
 //! reuse them, and most lists are empty (a flat sheet's particles two steps apart are two
-//! diameters apart). A list longer than
-//! [`LIST_CAPACITY`] is walked in the grid instead. The GPU sorts into a grid of cells two
-//! diameters wide every substep and walks it (`particles.wgsl`).
+//! diameters apart). A list longer than [`LIST_CAPACITY`] is walked in the grid instead. The
+//! GPU sorts into a grid of cells two diameters wide every substep and walks it
+//! (`particles.wgsl`).
 //!
 //! Here: the collisions' static data and the push; the grid and its walks in `grid.rs`; the
 //! lists and the choice between keeping, patching, remaking and going without them in
