@@ -14,8 +14,16 @@ use glam::{Vec3, Vec4};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// How much farther than their motion predicts the garments may go before the shells' focus is
-/// made again [m].
+/// made again [m]: where a bake starts ([`Focus::slack`]), and the least and most it goes to.
+/// A wider slack places more shell particles every substep; a narrower one makes the focus again
+/// within frames more often. Which pays depends on the scene (measured in `docs/benchmarks.md`,
+/// stop 66: capes, ponchos and the top faster at 0.005 m, the blanket and P at 0.02 m).
 const FOCUS_SLACK: f32 = 0.02;
+const FOCUS_SLACK_RANGE: (f32, f32) = (0.005, 0.08);
+
+/// What a frame without a focus made within it keeps of the slack: it narrows slowly, and
+/// doubles at each focus made within a frame.
+const FOCUS_SLACK_KEPT: f32 = 0.9;
 
 /// Everything that moves the garments from outside, on one clock.
 pub struct Drivers {
@@ -79,6 +87,25 @@ pub struct Focus {
     /// substep's `finish`, within [`super::Simulation::step_frame`] only).
     pub(super) checked_at: Option<u64>,
     pub(super) outran: AtomicBool,
+    /// How much farther than its motion predicts a particle may go [m]; adapts as the bake
+    /// goes ([`FOCUS_SLACK_KEPT`]). The frames do not depend on it, only what placing costs.
+    pub(super) slack: f32,
+    /// Whether the focus was made again within the frame under way.
+    pub(super) remade_within: bool,
+}
+
+impl Focus {
+    /// Before the focus is made: at a frame's start (`frame_start`), the slack narrows unless
+    /// the last frame made it again within; within a frame, it doubles.
+    fn adapt_slack(&mut self, frame_start: bool) {
+        let (least, most) = FOCUS_SLACK_RANGE;
+        self.slack = match (frame_start, self.remade_within) {
+            (true, true) => self.slack,
+            (true, false) => (self.slack * FOCUS_SLACK_KEPT).max(least),
+            (false, _) => (self.slack * 2.0).min(most),
+        };
+        self.remade_within = !frame_start;
+    }
 }
 
 /// What drives one frame, substep by substep, that only the CPU can place (see
@@ -123,6 +150,7 @@ impl Drivers {
             driven_speed: 0.0,
             focus: Focus {
                 enabled: true,
+                slack: FOCUS_SLACK,
                 ..Focus::default()
             },
         }
@@ -301,8 +329,8 @@ impl Drivers {
     /// Keeps each shell focused on the particles of `state` that can come near the garments:
     /// at a frame's start (`frame_start`), or when a garment particle is about to go farther
     /// from where it was when the focus was made than the focus allows it. The focus allows
-    /// each particle its own speed and gravity `g` [m/s²] over a frame, twice, plus
-    /// [`FOCUS_SLACK`]; before each substep, each particle must be within that of its place
+    /// each particle its own speed and gravity `g` [m/s²] over a frame, twice, plus the slack
+    /// ([`Focus::slack`]); before each substep, each particle must be within that of its place
     /// then, less twice its own motion in a substep and twice the shells' fastest. `contact`:
     /// the largest contact radius [m].
     pub(super) fn focus_shells(&mut self, state: &State, g: f32, contact: f32, frame_start: bool) {
@@ -323,8 +351,10 @@ impl Drivers {
                 return;
             }
         }
+        self.focus.adapt_slack(frame_start);
         let frame = 1.0 / self.clock.fps;
-        let allowance = |v: &Vec4| 2.0 * (v.length() * frame + g * frame * frame) + FOCUS_SLACK;
+        let slack = self.focus.slack;
+        let allowance = |v: &Vec4| 2.0 * (v.length() * frame + g * frame * frame) + slack;
         self.focus.origin.clear();
         self.focus.origin.extend(
             (state.positions.iter().zip(&state.velocities)).map(|(p, v)| (*p, allowance(v))),
@@ -357,5 +387,39 @@ impl Drivers {
         self.focus.enabled
             && self.focus.origin.len() == particles
             && self.shells.iter().any(|s| s.focused().is_some())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_focus_slack_narrows_over_quiet_frames_and_doubles_when_outrun() {
+        let mut focus = Focus {
+            slack: FOCUS_SLACK,
+            ..Focus::default()
+        };
+        let (least, most) = FOCUS_SLACK_RANGE;
+        // Quiet frames: a frame start after a frame made no focus within it narrows the slack,
+        // down to the least.
+        focus.adapt_slack(true);
+        assert_eq!(focus.slack, FOCUS_SLACK * FOCUS_SLACK_KEPT);
+        for _ in 0..100 {
+            focus.adapt_slack(true);
+        }
+        assert_eq!(focus.slack, least);
+        // Outrun within a frame: doubled; the next frame start keeps it; then narrows again.
+        focus.adapt_slack(false);
+        assert_eq!(focus.slack, 2.0 * least);
+        focus.adapt_slack(true);
+        assert_eq!(focus.slack, 2.0 * least);
+        focus.adapt_slack(true);
+        assert_eq!(focus.slack, 2.0 * least * FOCUS_SLACK_KEPT);
+        // Outrun again and again: up to the most.
+        for _ in 0..100 {
+            focus.adapt_slack(false);
+        }
+        assert_eq!(focus.slack, most);
     }
 }
