@@ -55,7 +55,7 @@ pub(super) struct Movers<'a> {
     /// 1 for a particle that has moved too far for the lists (written by its thread when the
     /// lists are checked, read by all after).
     pub(super) moving: Shared<u8>,
-    /// How many particles are movers in this substep.
+    /// How many particles are movers in this substep (the lists are stale when it is not zero).
     pub(super) count: &'a std::sync::atomic::AtomicU32,
     /// Set by a mover's thread on each particle the mover touches; cleared by the particle's.
     pub(super) touched: &'a [std::sync::atomic::AtomicBool],
@@ -78,8 +78,6 @@ pub(super) struct Stages<'a> {
     /// Each particle's neighbour list, and where it was when the lists were made.
     pub(super) lists: Shared<List>,
     pub(super) anchors: Shared<Vec4>,
-    /// Set when some particle has moved too far from its anchor for the lists to hold.
-    pub(super) lists_stale: &'a std::sync::atomic::AtomicBool,
     /// How the substeps have been finding the pairs (written by the leader after the stage).
     pub(super) list_state: &'a std::sync::Mutex<ListState>,
     /// Whether they may keep lists (else every substep finds its pairs directly), and how many
@@ -147,12 +145,12 @@ impl Stages<'_> {
             }
             if moved > 0 {
                 movers.count.fetch_add(moved, Relaxed);
-                self.lists_stale.store(true, Relaxed);
             }
             m.sync();
         }
-        let stale = self.lists_stale.load(Relaxed);
+        // Stale: some particle moved too far (or by NaN) for the lists.
         let moved = movers.count.load(Relaxed);
+        let stale = moved > 0;
         let finding = match self.particle_lists {
             true => state.finding(stale, moved, model.particle_count()),
             false => Finding::Direct,
@@ -216,11 +214,10 @@ impl Stages<'_> {
         }
         drop((g, mover_list));
         m.sync();
-        // Every thread has read the state, the flag and the count; none reads them again before
+        // Every thread has read the state and the movers' count; none reads them again before
         // the next substep's stage, after `finish`'s sync.
         if m.leads() && self.particle_lists {
             *self.list_state.lock().expect("not poisoned") = state.after(finding, stale);
-            self.lists_stale.store(false, Relaxed);
             movers.count.store(0, Relaxed);
             if matches!(finding, Finding::Reuse | Finding::Patch) {
                 self.lists_reused.fetch_add(1, Relaxed);

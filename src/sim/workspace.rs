@@ -34,10 +34,8 @@ pub(super) struct Workspace {
     /// the lists were made.
     lists: Vec<List>,
     anchors: Vec<Vec4>,
-    /// Set by the substep whose particles moved too far for the lists.
-    lists_stale: AtomicBool,
-    /// A patched substep's movers: a flag per particle, their count, the particles they touch,
-    /// and their list ([`crate::collide::particles::Patch`]).
+    /// The particles that moved too far for the lists (the movers): a flag per particle, their
+    /// count (the lists are stale when it is not zero), the particles they touch, and their list ([`crate::collide::particles::Patch`]).
     moving: Vec<u8>,
     movers: AtomicU32,
     touched: Vec<AtomicBool>,
@@ -110,7 +108,6 @@ impl Workspace {
             grid: RwLock::new(particles.map(|p| p.grid()).unwrap_or_default()),
             lists: vec![List::EMPTY; if particles.is_some() { n } else { 0 }],
             anchors: vec![Vec4::INFINITY; if particles.is_some() { n } else { 0 }],
-            lists_stale: AtomicBool::new(false),
             moving: vec![0; if particles.is_some() { n } else { 0 }],
             movers: AtomicU32::new(0),
             touched: (0..if particles.is_some() { n } else { 0 })
@@ -201,7 +198,6 @@ impl Workspace {
             grid: &self.grid,
             lists: Shared::new(&mut self.lists),
             anchors: Shared::new(&mut self.anchors),
-            lists_stale: &self.lists_stale,
             list_state: &self.list_state,
             particle_lists: self.particle_lists_enabled,
             lists_reused: &self.lists_reused,
