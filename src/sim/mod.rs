@@ -580,6 +580,11 @@ impl Simulation {
         let threads = self.sharing.threads();
         self.drivers.clock.elapsed += count as u64;
         let placing_ns = AtomicU64::new(0);
+        if place_ahead.is_some() {
+            for s in &mut self.drivers.shells {
+                s.prepare_ahead();
+            }
+        }
         let stages = self.workspace.stages(
             &mut self.state,
             &self.drivers,

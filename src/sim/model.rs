@@ -403,13 +403,19 @@ impl Model {
     /// Per particle (storage order), whether it is in a small model's high domain (all false in
     /// a larger model).
     pub fn high_side(&self) -> Vec<bool> {
-        let mut high = vec![false; self.particle_count()];
+        self.side_of(1)
+    }
+
+    /// Per particle, whether it is on `side` (0 low, 1 high) of a model in two domains (all
+    /// false in one domain).
+    pub fn side_of(&self, side: usize) -> Vec<bool> {
+        let mut on = vec![false; self.particle_count()];
         if let Some(d) = &self.domains {
-            for r in d.side(&self.colour_ranges, 1) {
-                high[r.clone()].fill(true);
+            for r in d.side(&self.colour_ranges, side) {
+                on[r.clone()].fill(true);
             }
         }
-        high
+        on
     }
 
     /// The colours of a sweep, in order, as the GPU dispatches them: each colour's particles in

@@ -405,17 +405,26 @@ impl Stages<'_> {
     /// `predict_next`, the next prediction.
     pub(super) fn finish(&self, m: &Member, predict_next: bool) {
         let (model, b) = (self.model, &self.b);
-        // The leader places the shells for the next substep first (see `place_ahead`).
+        // Every thread places its part of the shells for the next substep first, and the leader
+        // grids them once all are placed, while the others finish particles (see
+        // `ShellCollider::place_ahead_part`).
         let place_ahead = || {
-            if let (Some(to), true) = (self.place_ahead, m.leads()) {
-                let start = std::time::Instant::now();
-                for s in self.shells {
-                    s.place_ahead(to, self.contact_reach);
-                }
-                let took = start.elapsed().as_nanos() as u64;
-                self.placing_ns
-                    .fetch_add(took, std::sync::atomic::Ordering::Relaxed);
+            let Some(to) = self.place_ahead else {
+                return;
+            };
+            let start = std::time::Instant::now();
+            for s in self.shells {
+                s.place_ahead_part(to, self.contact_reach, m.index, m.count);
             }
+            if m.leads() {
+                for s in self.shells.iter().filter(|s| s.ahead_prepared()) {
+                    m.wait_until(|| s.ahead_parts_placed() >= m.count);
+                    s.finish_ahead(to, self.contact_reach);
+                }
+            }
+            let took = start.elapsed().as_nanos() as u64;
+            self.placing_ns
+                .fetch_add(took, std::sync::atomic::Ordering::Relaxed);
         };
         m.balanced_after(&model.work_order, place_ahead, |i| {
             if model.inv_mass[i] == 0.0 {

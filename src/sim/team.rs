@@ -122,6 +122,10 @@ pub struct Member<'a> {
     barrier: &'a SpinBarrier,
     /// Per thread, what is left of its particles in the current balanced stage.
     left: &'a [Left],
+    /// Per thread, the handoffs it has made in this region ([`Member::hand_off`]).
+    handed: &'a [Left],
+    /// This thread's handoffs so far.
+    handoffs: std::cell::Cell<u64>,
 }
 
 /// What is left of one thread's particles in a balanced stage ([`Member::balanced`]): the
@@ -209,6 +213,42 @@ impl Member<'_> {
                 visit(other, taken);
             }
         }
+    }
+
+    /// Spins until `done` holds, yielding the core after a while (a team larger than the
+    /// machine's cores); panics when another thread of the team has panicked, which then
+    /// never makes it hold.
+    pub fn wait_until(&self, done: impl Fn() -> bool) {
+        let mut spins = 0u32;
+        while !done() {
+            self.barrier.check();
+            spins += 1;
+            if spins < SPINS {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
+        }
+    }
+
+    /// Tells the team this thread has done one more step of a sequence every thread counts
+    /// alike (a sweep): what [`Member::wait_for`] waits for. Everything written before it is
+    /// visible to the thread that saw it (release, acquire).
+    pub fn hand_off(&self) {
+        let n = self.handoffs.get() + 1;
+        self.handoffs.set(n);
+        self.handed[self.index].0.store(n, Ordering::Release);
+    }
+
+    /// The handoffs this thread has made in this region.
+    pub fn handoffs(&self) -> u64 {
+        self.handoffs.get()
+    }
+
+    /// Waits until thread `other` has made at least `n` handoffs in this region.
+    pub fn wait_for(&self, other: usize, n: u64) {
+        let handed = &self.handed[other].0;
+        self.wait_until(|| handed.load(Ordering::Acquire) >= n);
     }
 
     /// Waits for the whole team: ends a stage.
@@ -351,12 +391,15 @@ pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
     };
     let barrier = SpinBarrier::new(threads);
     let left: Vec<Left> = (0..threads).map(|_| Left::default()).collect();
+    let handed: Vec<Left> = (0..threads).map(|_| Left::default()).collect();
     if threads == 1 {
         body(&Member {
             index: 0,
             count: 1,
             barrier: &barrier,
             left: &left,
+            handed: &handed,
+            handoffs: Default::default(),
         });
         return RegionStats {
             threads,
@@ -369,6 +412,8 @@ pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
             count: ctx.num_threads(),
             barrier: &barrier,
             left: &left,
+            handed: &handed,
+            handoffs: Default::default(),
         };
         if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| body(&member)))
         {

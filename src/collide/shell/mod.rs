@@ -37,11 +37,13 @@
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
+mod ahead;
 mod contact;
 mod grid;
 mod near;
 mod placement;
 use super::floor_cell;
+use ahead::AheadSlot;
 use contact::*;
 use grid::*;
 use placement::*;

@@ -1,6 +1,6 @@
 //! Moving shells in time: positions and normals interpolated between character frames at each
-//! substep, the focus (only the shell particles that can come near the garments are moved and
-//! gridded), and the placement of the next substep's shell ahead, on another thread.
+//! substep, and the focus (only the shell particles that can come near the garments are moved
+//! and gridded). The next substep's placement ahead, inside `finish`, is in `ahead`.
 
 use super::*;
 use glam::{IVec3, Vec3, Vec3A, Vec4};
@@ -94,17 +94,11 @@ impl Placing<'_> {
         grid: &mut HashGrid,
         parallel: bool,
     ) -> Option<((Vec3, Vec3), f32)> {
-        let (k, j, w) = frame_span(self.frames.len(), to);
-        let (a, b) = (&self.frames[k], &self.frames[j]);
-        let n = a.len();
-        if b.len() != n || self.before.len() != n {
-            return None;
-        }
-        let before = self.before;
+        let span = self.span(to)?;
+        let n = self.before.len();
         now.resize(n, Vec3::ZERO);
         motion.resize(n, Vec3::ZERO);
-        let normals = (!self.normals.is_empty()).then(|| (&self.normals[k], &self.normals[j]));
-        if normals.is_some() {
+        if !self.normals.is_empty() {
             normal.resize(n, Vec3::ZERO);
         }
         let mut cells = std::mem::take(&mut grid.cells);
@@ -112,62 +106,41 @@ impl Placing<'_> {
         cells.resize(self.active.len(), IVec3::ZERO);
         const CHUNK: usize = 1024;
         let pieces = Piece::split(self.active, CHUNK, [now, motion, normal]);
-        let cell = self.cell;
-        let empty = (Vec3::MAX, Vec3::MIN, 0.0f32);
-        let place = |(piece, cells): (Piece, &mut [IVec3])| {
-            let Piece {
-                indices,
-                first,
-                arrays: [now, motion, normal],
-            } = piece;
-            // In SIMD lanes (Vec3A): the same operations lane by lane, so the same bits as
-            // `Vec3::lerp`, `normalize_or` and `cell_index`, at a third of the divisions.
-            let lerp = |a: Vec3, b: Vec3| Vec3A::from(a) * (1.0 - w) + Vec3A::from(b) * w;
-            let (mut lo, mut hi) = (Vec3A::from(empty.0), Vec3A::from(empty.1));
-            let mut fastest = empty.2;
-            for (&i, c) in indices.iter().zip(cells) {
-                let i = i as usize;
-                let p = lerp(a[i], b[i]);
-                let m = p - Vec3A::from(before[i]);
-                now[i - first] = p.into();
-                motion[i - first] = m.into();
-                *c = floor_cell(p / cell);
-                let start = p - m;
-                lo = lo.min(p).min(start);
-                hi = hi.max(p).max(start);
-                fastest = fastest.max(m.length_squared());
-            }
-            if let Some((na, nb)) = normals {
-                // Four at a time: their square roots and divisions were a third of the move.
-                let mut quads = indices.chunks_exact(4);
-                for quad in &mut quads {
-                    let i: [usize; 4] = std::array::from_fn(|l| quad[l] as usize);
-                    let units = normalize4_or_y(i.map(|i| lerp(na[i], nb[i])));
-                    for (i, unit) in i.into_iter().zip(units) {
-                        normal[i - first] = unit.into();
-                    }
-                }
-                for &i in quads.remainder() {
-                    let i = i as usize;
-                    normal[i - first] = lerp(na[i], nb[i]).normalize_or(Vec3A::Y).into();
-                }
-            }
-            (Vec3::from(lo), Vec3::from(hi), fastest)
-        };
-        let merge =
-            |x: (Vec3, Vec3, f32), y: (Vec3, Vec3, f32)| (x.0.min(y.0), x.1.max(y.1), x.2.max(y.2));
+        let place = |(piece, cells): (Piece, &mut [IVec3])| self.place_piece(span, piece, cells);
         let (lo, hi, fastest) = if parallel {
             (pieces.into_par_iter())
                 .zip(cells.par_chunks_mut(CHUNK))
                 .map(place)
-                .reduce(|| empty, merge)
+                .reduce(|| EMPTY_BOX, merge_boxes)
         } else {
             (pieces.into_iter())
                 .zip(cells.chunks_mut(CHUNK))
                 .map(place)
-                .fold(empty, merge)
+                .fold(EMPTY_BOX, merge_boxes)
         };
-        // Every particle's cell lies within the cells of the box around the particles.
+        self.build(grid, cells, (lo, hi), parallel);
+        Some(((lo, hi), fastest.sqrt()))
+    }
+
+    /// The two frames `to` lies between and the later one's weight ([`frame_span`]); None when
+    /// they or `before` differ in size.
+    pub(super) fn span(&self, to: f32) -> Option<(usize, usize, f32)> {
+        let (k, j, w) = frame_span(self.frames.len(), to);
+        let n = self.frames[k].len();
+        (self.frames[j].len() == n && self.before.len() == n).then_some((k, j, w))
+    }
+
+    /// The grid of the focus's particles from their `cells`, which every particle's cell
+    /// lies within the cells of the box `(lo, hi)` around them; `cells` go back to the grid
+    /// as its buffer.
+    pub(super) fn build(
+        &self,
+        grid: &mut HashGrid,
+        cells: Vec<IVec3>,
+        (lo, hi): (Vec3, Vec3),
+        parallel: bool,
+    ) {
+        let cell = self.cell;
         let cell_box = (cell_index(lo, cell), cell_index(hi, cell));
         let (active, buckets) = (self.active, self.buckets);
         let build = |grid: &mut HashGrid| grid.build_cells(&cells, active, cell_box, cell, buckets);
@@ -177,8 +150,66 @@ impl Placing<'_> {
             build(grid);
         }
         grid.cells = cells;
-        Some(((lo, hi), fastest.sqrt()))
     }
+
+    /// One piece's particles at the frames' `span`: their positions, motions, normals and
+    /// cells; the box around both ends of their paths and the longest motion, squared.
+    pub(super) fn place_piece(
+        &self,
+        (k, j, w): (usize, usize, f32),
+        piece: Piece,
+        cells: &mut [IVec3],
+    ) -> (Vec3, Vec3, f32) {
+        let (a, b, before, cell) = (&self.frames[k], &self.frames[j], self.before, self.cell);
+        let normals = (!self.normals.is_empty()).then(|| (&self.normals[k], &self.normals[j]));
+        let Piece {
+            indices,
+            first,
+            arrays: [now, motion, normal],
+        } = piece;
+        // In SIMD lanes (Vec3A): the same operations lane by lane, so the same bits as
+        // `Vec3::lerp`, `normalize_or` and `cell_index`, at a third of the divisions.
+        let lerp = |a: Vec3, b: Vec3| Vec3A::from(a) * (1.0 - w) + Vec3A::from(b) * w;
+        let (mut lo, mut hi) = (Vec3A::from(EMPTY_BOX.0), Vec3A::from(EMPTY_BOX.1));
+        let mut fastest = EMPTY_BOX.2;
+        for (&i, c) in indices.iter().zip(cells) {
+            let i = i as usize;
+            let p = lerp(a[i], b[i]);
+            let m = p - Vec3A::from(before[i]);
+            now[i - first] = p.into();
+            motion[i - first] = m.into();
+            *c = floor_cell(p / cell);
+            let start = p - m;
+            lo = lo.min(p).min(start);
+            hi = hi.max(p).max(start);
+            fastest = fastest.max(m.length_squared());
+        }
+        if let Some((na, nb)) = normals {
+            // Four at a time: their square roots and divisions were a third of the move.
+            let mut quads = indices.chunks_exact(4);
+            for quad in &mut quads {
+                let i: [usize; 4] = std::array::from_fn(|l| quad[l] as usize);
+                let units = normalize4_or_y(i.map(|i| lerp(na[i], nb[i])));
+                for (i, unit) in i.into_iter().zip(units) {
+                    normal[i - first] = unit.into();
+                }
+            }
+            for &i in quads.remainder() {
+                let i = i as usize;
+                normal[i - first] = lerp(na[i], nb[i]).normalize_or(Vec3A::Y).into();
+            }
+        }
+        (Vec3::from(lo), Vec3::from(hi), fastest)
+    }
+}
+
+/// The box around no particle, and no motion: what [`merge_boxes`] starts from.
+pub(super) const EMPTY_BOX: (Vec3, Vec3, f32) = (Vec3::MAX, Vec3::MIN, 0.0);
+
+/// The box around two pieces' boxes, and the longer of their longest motions (exact, in any
+/// order).
+pub(super) fn merge_boxes(x: (Vec3, Vec3, f32), y: (Vec3, Vec3, f32)) -> (Vec3, Vec3, f32) {
+    (x.0.min(y.0), x.1.max(y.1), x.2.max(y.2))
 }
 
 /// `n[l].normalize_or(Vec3A::Y)` for four vectors at once, their lengths side by side in one
@@ -209,36 +240,6 @@ pub(super) fn sqrt4(v: Vec4) -> Vec4 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     Vec4::from_array(v.to_array().map(f32::sqrt))
-}
-
-/// A focused shell placed at the end of the next substep ahead of time
-/// ([`ShellCollider::place_ahead`]), with the buffers it is placed into.
-#[derive(Debug, Default)]
-pub(super) struct Ahead {
-    /// Placed, and not taken yet.
-    pub(super) ready: bool,
-    /// The substep it was placed for (fractional frames), with which focus and lattice.
-    pub(super) span: (f32, f32),
-    pub(super) focus: u64,
-    pub(super) lattice: (f32, usize),
-    pub(super) now: Vec<Vec3>,
-    pub(super) motion: Vec<Vec3>,
-    pub(super) normal: Vec<Vec3>,
-    pub(super) grid: HashGrid,
-    pub(super) bounds: (Vec3, Vec3),
-    pub(super) fastest: f32,
-}
-
-/// The slot a team thread places a shell ahead into through a shared reference (one thread
-/// writes it inside `finish`; `advance` takes it between team regions). A copy of the shell
-/// starts with it empty.
-#[derive(Debug, Default)]
-pub(super) struct AheadSlot(pub(super) std::sync::Mutex<Ahead>);
-
-impl Clone for AheadSlot {
-    fn clone(&self) -> AheadSlot {
-        AheadSlot::default()
-    }
 }
 
 /// A run of a focus's particles (ascending indices from `first` on) with the stretch of each
@@ -504,77 +505,6 @@ impl ShellCollider {
         self.bounds = bounds;
         self.fastest = fastest.max(focus.left_out_fastest);
         true
-    }
-
-    /// Places the focus's particles at the end of the next substep (ending at fractional frame
-    /// `to`) ahead of time, while the team finishes the current one: one thread does it inside
-    /// `finish`, whose particles the others share out meanwhile, instead of every thread waiting
-    /// for it before the next substep (its grid's sort is serial). The next [`Self::advance`]
-    /// takes it when it asks for that substep with the same focus; anything else (a new focus,
-    /// another substep) places the shell as usual. Only focused shells, which only the CPU
-    /// backend has.
-    pub fn place_ahead(&self, to: f32, garment_radius: f32) {
-        let (Some(focus), Some(from)) = (&self.focus, self.now_at) else {
-            return;
-        };
-        let (cell, buckets) = (
-            self.cell_for(garment_radius),
-            Self::buckets_for(self.most_particles()),
-        );
-        let mut slot = self.ahead.0.lock().unwrap_or_else(|e| e.into_inner());
-        let ahead = &mut *slot;
-        ahead.ready = false;
-        let arrays = [&mut ahead.now, &mut ahead.motion, &mut ahead.normal];
-        let placed = Placing {
-            frames: &self.frames,
-            normals: &self.normals,
-            active: &focus.active,
-            before: &self.now,
-            cell,
-            buckets,
-        }
-        .place(to, arrays, &mut ahead.grid, false);
-        if let Some((bounds, fastest)) = placed {
-            ahead.ready = true;
-            ahead.span = (from, to);
-            ahead.focus = self.focus_made;
-            ahead.lattice = (cell, buckets);
-            ahead.bounds = bounds;
-            ahead.fastest = fastest.max(focus.left_out_fastest);
-        }
-    }
-
-    /// Takes the shell [`Self::place_ahead`] placed for the substep from `from` to `to`, when it
-    /// was placed for that substep, lattice and focus; false otherwise (then nothing changed).
-    pub(super) fn take_ahead(&mut self, from: f32, to: f32, cell: f32, buckets: usize) -> bool {
-        let ahead = self.ahead.0.get_mut().unwrap_or_else(|e| e.into_inner());
-        let valid = ahead.ready
-            && ahead.span == (from, to)
-            && ahead.lattice == (cell, buckets)
-            && ahead.focus == self.focus_made
-            && self.now_at == Some(from)
-            && self.focus.as_ref().is_some_and(|f| !f.changed);
-        ahead.ready = false;
-        if !valid {
-            return false;
-        }
-        // Where the shell is now starts the substep; what was placed ends it; the start's old
-        // buffers take the next placement.
-        std::mem::swap(&mut self.before, &mut self.now);
-        std::mem::swap(&mut self.now, &mut ahead.now);
-        std::mem::swap(&mut self.motion, &mut ahead.motion);
-        std::mem::swap(&mut self.now_normal, &mut ahead.normal);
-        std::mem::swap(&mut self.grid, &mut ahead.grid);
-        self.bounds = ahead.bounds;
-        self.fastest = ahead.fastest;
-        self.now_at = Some(to);
-        self.taken_ahead += 1;
-        true
-    }
-
-    /// Substeps so far that took the shell [`Self::place_ahead`] placed for them.
-    pub fn taken_ahead(&self) -> u64 {
-        self.taken_ahead
     }
 
     /// Every other case (small shells, shells re-sampled per frame) step by step.

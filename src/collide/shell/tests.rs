@@ -180,9 +180,10 @@ fn a_static_shell_sits_exactly_on_its_frame_whenever_the_bake_starts() {
     }
 }
 
-/// A focused shell placed ahead during a substep is, when the next substep takes it, what
-/// placing it then gives: every focused particle's position, motion and normal, the grid's
-/// walks, the box and the fastest motion; a new focus in between leaves it untaken.
+/// A focused shell placed ahead during a substep, by one thread or in parts by three, is, when
+/// the next substep takes it, what placing it then gives: every focused particle's position,
+/// motion and normal, the grid's walks, the box and the fastest motion; a new focus in between
+/// leaves it untaken.
 #[test]
 fn a_shell_placed_ahead_is_the_shell_placed_then() {
     // A sheet of shell particles over 0.6 × 0.6 m sliding and turning over three frames,
@@ -218,9 +219,25 @@ fn a_shell_placed_ahead_is_the_shell_placed_then() {
     assert!(active > 0 && active < all / 2, "{active} of {all}");
     let r = 0.0025;
     shell.advance(0.0, per, r);
-    for refocus in [false, true] {
+    for (refocus, parts) in [(false, 1), (false, 3), (true, 1)] {
         let mut ahead = shell.clone();
-        ahead.place_ahead(2.0 * per, r);
+        if parts == 1 {
+            ahead.place_ahead(2.0 * per, r);
+        } else {
+            // In parts on threads of their own, the first part's finishing the whole.
+            ahead.prepare_ahead();
+            let placing = &ahead;
+            std::thread::scope(|scope| {
+                for part in 1..parts {
+                    scope.spawn(move || placing.place_ahead_part(2.0 * per, r, part, parts));
+                }
+                placing.place_ahead_part(2.0 * per, r, 0, parts);
+                while placing.ahead_parts_placed() < parts {
+                    std::thread::yield_now();
+                }
+                placing.finish_ahead(2.0 * per, r);
+            });
+        }
         if refocus {
             ahead.focus(per, &near, per);
         }

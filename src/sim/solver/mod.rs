@@ -75,6 +75,10 @@ struct Owned {
     index: Vec<u32>,
     /// Where each thread's springs start (one more than the threads).
     start: Vec<usize>,
+    /// In a model in two domains, how many of thread 1's springs come before the ones with an
+    /// end on the separator (0 otherwise): those it projects while thread 0 still sweeps the
+    /// separator ([`rbgs::iterate_in_two`]).
+    clear_of_separator: usize,
 }
 
 impl Owned {
@@ -89,13 +93,26 @@ impl Owned {
     /// barrier: a spring with an end on the high side goes to thread 1, which sweeps that side;
     /// every other one to thread 0 (the separator's own springs are read after a barrier).
     fn by_domain(model: &Model, threads: usize) -> Owned {
-        let high = model.high_side();
+        let (low, high) = (model.side_of(0), model.side_of(1));
+        let on_separator = |p: u32| !low[p as usize] && !high[p as usize];
         let mut lists = vec![Vec::new(); threads];
+        // Thread 1's springs within the high side first, then those that reach the separator.
+        let mut reaching = Vec::new();
         for (k, s) in model.springs.iter().enumerate() {
-            let t = usize::from(high[s.a as usize] || high[s.b as usize]);
-            lists[t].push(k as u32);
+            if !high[s.a as usize] && !high[s.b as usize] {
+                lists[0].push(k as u32);
+            } else if on_separator(s.a) || on_separator(s.b) {
+                reaching.push(k as u32);
+            } else {
+                lists[1].push(k as u32);
+            }
         }
-        Owned::from_lists(model, threads, lists)
+        let clear_of_separator = lists[1].len();
+        lists[1].extend(reaching);
+        Owned {
+            clear_of_separator,
+            ..Owned::from_lists(model, threads, lists)
+        }
     }
 
     /// Every spring to the thread that sweeps its end of the lower colour.
@@ -142,6 +159,7 @@ impl Owned {
             springs: index.iter().map(|&k| model.springs[k as usize]).collect(),
             index,
             start,
+            clear_of_separator: 0,
         }
     }
 
@@ -222,6 +240,18 @@ impl Solver {
         iterations: u32,
     ) {
         let s = &self.settings;
+        if let (Some(domains), Some(o), SolverKind::Rbgs, 2) =
+            (&model.domains, &self.owned, s.kind, m.count)
+        {
+            if o.threads == 2 {
+                let at = rbgs::Two {
+                    domains,
+                    solver: self,
+                    owned: o,
+                };
+                return at.iterate(m, model, b, observe, iterations);
+            }
+        }
         for _ in 0..iterations {
             if s.kind == SolverKind::Pbd {
                 pbd::iterate(m, model, b, s.omega);
