@@ -777,7 +777,12 @@ impl Region<'_> {
                         schedule::Stage::Forces => continue,
                         // Every solver stage ends with a sync.
                         schedule::Stage::Solve { iterations } => {
-                            self.solver.iterate(m, model, buffers, &observe, iterations)
+                            match self.solver.in_two(m, model) {
+                                Some(two) => two.iterate(m, model, buffers, &observe, iterations),
+                                None => {
+                                    self.solver.iterate(m, model, buffers, &observe, iterations)
+                                }
+                            }
                         }
                         schedule::Stage::ContactPass => {
                             stages.contact_pass(m, first_pass);

@@ -8,6 +8,7 @@ use crate::sim::model::Model;
 use crate::sim::team::Member;
 
 /// One sweep: new displacements into `scratch`, then copied back into Δ.
+#[inline(never)] // a reference method: its code stays out of red-black Gauss-Seidel's loop
 pub fn sweep(m: &Member, model: &Model, solver: &Solver, b: &Buffers, omega: f32) {
     // SAFETY: this stage reads Δ, target and projection and writes only scratch, each index
     // by one thread.

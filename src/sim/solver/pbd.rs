@@ -10,6 +10,7 @@ use crate::sim::team::Member;
 use glam::Vec4;
 
 /// One Jacobi iteration over every particle.
+#[inline(never)] // a reference method: its code stays out of red-black Gauss-Seidel's loop
 pub fn iterate(m: &Member, model: &Model, b: &Buffers, omega: f32) {
     // SAFETY: this stage reads x and Δ and writes only scratch, each index by one thread.
     let mine = model.particles_of(m.index, m.count);
