@@ -78,7 +78,7 @@ struct Owned {
     start: Vec<usize>,
     /// In a model in two domains, how many of thread 1's springs come before the ones with an
     /// end on the separator (0 otherwise): those it projects while thread 0 still sweeps the
-    /// separator ([`rbgs::iterate_in_two`]).
+    /// separator ([`two::Two`]).
     clear_of_separator: usize,
 }
 
