@@ -94,7 +94,7 @@ impl ShellCollider {
             ahead.normal.resize(n, Vec3::ZERO);
             ahead.normal.as_mut_ptr()
         };
-        ahead.grid.cells.clear();
+        // Every entry is written by the parts: sized, not cleared.
         ahead.grid.cells.resize(focus.active.len(), IVec3::ZERO);
         ahead.buffers = Some(Buffers {
             now: ahead.now.as_mut_ptr(),

@@ -11,8 +11,8 @@ use crate::sim::team::Member;
 
 /// Red-black Gauss-Seidel's iterations of a model in two domains on a team of two threads,
 /// handed over point to point ([`Member::hand_off`]): the same projections and sweeps in the
-/// same order as the team's ([`Solver::iterate`] with `rbgs`'s sweep in two domains), so the same numbers.
-/// Per sweep, thread 0 sweeps the low side, waits for thread 1's high side, sweeps the separator
+/// same order as the team's ([`Solver::iterate`] with `rbgs`'s sweep in two domains), so the
+/// same numbers. Per sweep, thread 0 sweeps the low side, waits for thread 1's high side, sweeps the separator
 /// and hands off; thread 1 waits for the separator of the sweep before (which its next rows and
 /// the springs that reach the separator read), sweeps the high side and hands off. Thread 1
 /// projects its springs within the high side before that wait, while thread 0 still sweeps the
