@@ -96,6 +96,7 @@ fn particles_tied_to_the_skin_ride_it() {
         shell_cache: Some(dir.path().join("cache")),
         resume: Default::default(),
         until: None,
+        fixed_team: false,
     };
     let result = bake(&scene, &options).expect("bake");
     assert!(result.report.stable, "{:?}", result.report.failure);

@@ -86,6 +86,7 @@ fn passes_survive_a_shell_that_shrinks_between_frames() {
         shell_cache: Some(dir.path().join("cache")),
         resume: Default::default(),
         until: None,
+        fixed_team: false,
     };
     let result = drape::bake::bake(&scene, &options).expect("bake");
     assert!(result.report.stable, "{:?}", result.report.failure);

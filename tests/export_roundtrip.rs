@@ -24,6 +24,7 @@ fn obj_frames_read_back_with_the_simulated_positions() {
             shell_cache: None,
             resume: Default::default(),
             until: None,
+            fixed_team: false,
         },
     )
     .expect("bake");

@@ -122,6 +122,7 @@ fn a_bake_in_the_wind_resumes_bit_for_bit() {
         shell_cache: None,
         resume,
         until,
+        fixed_team: false,
     };
     let whole = bake(&scene, &options("whole", Resume::No, None)).unwrap();
     bake(&scene, &options("part", Resume::No, Some(7))).unwrap();

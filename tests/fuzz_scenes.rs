@@ -283,6 +283,7 @@ fn exercise(text: &str, base: &Path, bake_it: bool, tally: &mut Tally) -> Result
             shell_cache: Some(dir.path().join("cache")),
             resume: Default::default(),
             until: None,
+            fixed_team: false,
         };
         match drape::bake::bake(&small, &options) {
             Ok(b) => {

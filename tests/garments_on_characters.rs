@@ -33,6 +33,7 @@ fn run(text: &str, out: &Path) -> drape::bake::Bake {
         shell_cache: Some(out.parent().unwrap().join("cache")),
         resume: Default::default(),
         until: None,
+        fixed_team: false,
     };
     bake(&scene, &options).expect("bake")
 }

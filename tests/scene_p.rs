@@ -30,6 +30,7 @@ fn bake_without_files(
         shell_cache: Some(dir.path().join("cache")),
         resume: Default::default(),
         until: None,
+        fixed_team: false,
     };
     let result = bake(&scene, &options).expect("bake");
     (scene, result)

@@ -214,6 +214,15 @@ fn the_characters_bench_times_every_bake_against_its_own_counts() {
                 "{column}: {r:?}"
             );
         }
+        // How busy the machine was: a share of the team's waits on two threads, none on one.
+        let asleep = &r["team_waits_asleep"];
+        match r["threads"].as_str() {
+            "1" => assert!(asleep.is_empty(), "{r:?}"),
+            _ => assert!(
+                asleep.is_empty() || (0.0..=1.0).contains(&number(r, "team_waits_asleep")),
+                "{r:?}"
+            ),
+        }
         let same: Vec<_> = rows.iter().filter(|o| o["scene"] == r["scene"]).collect();
         assert!(
             same.iter().all(|o| o["frames_hash"] == r["frames_hash"]),

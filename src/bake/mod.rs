@@ -62,6 +62,10 @@ pub struct BakeOptions {
     pub resume: Resume,
     /// Stop after this shot frame, with a checkpoint (a farm chunk that the next resumes).
     pub until: Option<u32>,
+    /// Every frame on all `threads`, even while the machine looks busy (a benchmark timing a
+    /// given number of threads); false: frames go to one thread while the team's waits keep
+    /// sleeping ([`crate::sim::team::Sharing`]), counted in `backend.frames_on_one_thread`.
+    pub fixed_team: bool,
 }
 
 /// What a finished bake returns.
@@ -254,6 +258,9 @@ fn run(
         warnings: binding,
     } = simulation(scene, characters, &options.scene_file)?;
     warnings.extend(binding);
+    if options.fixed_team {
+        sim.sharing = crate::sim::team::Sharing::whole_team();
+    }
     // The rest pose, the meshes and the report as the scene builds them, before a checkpoint
     // is put back.
     let rest = sim.export_positions();
@@ -391,6 +398,7 @@ fn run(
     report::as_shot(&mut report, scene);
     if report.backend.kind == "cpu" {
         report.backend.frames_on_one_thread = sim.sharing.solo_frames;
+        report.backend.team_waits_asleep = sim.sharing.asleep_share();
     }
     Ok((report, sim.export_positions()))
 }

@@ -25,6 +25,7 @@ pub(super) fn empty_report(
             kind: "cpu",
             threads,
             frames_on_one_thread: 0,
+            team_waits_asleep: None,
             adapter: None,
         },
         solver: scene.solver.clone(),

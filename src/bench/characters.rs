@@ -62,6 +62,9 @@ struct Timed {
     solve: f64,
     collisions: f64,
     hash: String,
+    /// The share of the team's barrier waits that slept (None on one thread): how busy the
+    /// machine was ([`crate::report::Backend::team_waits_asleep`]).
+    asleep: Option<f64>,
 }
 
 impl Timed {
@@ -85,6 +88,7 @@ impl Timed {
                 .map(|n| stage(n))
                 .sum(),
             hash: report.frames_hash.clone(),
+            asleep: report.backend.team_waits_asleep,
         }
     }
 
@@ -144,9 +148,13 @@ pub fn run(
                 for &threads in &options.threads {
                     let t = bake_one(label, scene, threads, round, options.frames, &work)?;
                     log(&format!(
-                        "round {round}, {label}, {threads} thread(s): {:.2} ms/frame, {:.1} ns per particle-iteration",
+                        "round {round}, {label}, {threads} thread(s): {:.2} ms/frame, {:.1} ns per particle-iteration{}",
                         t.ms_per_frame,
-                        t.per_particle()
+                        t.per_particle(),
+                        t.asleep.map_or(String::new(), |a| format!(
+                            ", {:.1} % of the team's waits asleep",
+                            100.0 * a
+                        ))
                     ));
                     timed.push((label.clone(), t));
                 }
@@ -177,11 +185,11 @@ fn bake_one(
 
 fn csv(timed: &[(String, Timed)]) -> String {
     let mut csv = String::from(
-        "scene,threads,round,particles,springs,particle_iterations_per_frame,ms_per_frame,ns_per_particle_iteration,ns_per_spring_iteration,solve_ms,collisions_and_shells_ms,frames_hash\n",
+        "scene,threads,round,particles,springs,particle_iterations_per_frame,ms_per_frame,ns_per_particle_iteration,ns_per_spring_iteration,solve_ms,collisions_and_shells_ms,frames_hash,team_waits_asleep\n",
     );
     for (label, t) in timed {
         csv.push_str(&format!(
-            "{label},{},{},{},{},{},{:.4},{:.3},{:.4},{:.4},{:.4},{}\n",
+            "{label},{},{},{},{},{},{:.4},{:.3},{:.4},{:.4},{:.4},{},{}\n",
             t.threads,
             t.round,
             t.particles,
@@ -192,7 +200,8 @@ fn csv(timed: &[(String, Timed)]) -> String {
             t.per_spring(),
             t.solve,
             t.collisions,
-            t.hash
+            t.hash,
+            t.asleep.map_or(String::new(), |a| format!("{a:.4}")),
         ));
     }
     csv
@@ -215,7 +224,7 @@ fn median(mut values: Vec<f64>) -> f64 {
 /// round and thread count.
 fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
     let mut md = String::from(
-        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | ns per spring-iteration (× H) | collisions and shells × solve | frames hash |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | ns per spring-iteration (× H) | collisions and shells × solve | team waits asleep (most) | frames hash |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     // The bake labelled `reference` of the same round and thread count.
     let bake_of = |reference: &str, round: u32, threads: usize| {
@@ -246,7 +255,7 @@ fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
             };
             let ratio = |f: fn(&Timed) -> f64| ratio_to(reference, f);
             md.push_str(&format!(
-                "| {label} | {n} | {} | {:.2} | {:.2} | {:.1} ({:.2}) | {:.2} | {:.2} ({:.2}) | {:.2} | {} |\n",
+                "| {label} | {n} | {} | {:.2} | {:.2} | {:.1} ({:.2}) | {:.2} | {:.2} ({:.2}) | {:.2} | {} | {} |\n",
                 first.particles,
                 first.springs as f64 / first.particles as f64,
                 median(runs.iter().map(|t| t.ms_per_frame).collect()),
@@ -256,6 +265,9 @@ fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
                 median(runs.iter().map(|t| t.per_spring()).collect()),
                 ratio(Timed::per_spring),
                 median(runs.iter().map(|t| t.collisions / t.solve.max(1e-9)).collect()),
+                (runs.iter().filter_map(|t| t.asleep))
+                    .reduce(f64::max)
+                    .map_or("–".to_string(), |a| format!("{:.1} %", 100.0 * a)),
                 first.hash,
             ));
         }

@@ -48,6 +48,8 @@ pub(crate) fn bake_report(
         shell_cache: Some(work.join("cache")),
         resume: crate::bake::Resume::No,
         until: None,
+        // A benchmark times the threads it names: no frame sent to one thread.
+        fixed_team: true,
     };
     Ok(crate::bake::bake(scene, &options)?.report)
 }

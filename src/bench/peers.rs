@@ -371,6 +371,8 @@ fn drape_runs(peer: &Peer, dir: &Path, quick: bool) -> Result<Vec<Run>> {
             shell_cache: Some(dir.join("cache")),
             resume: Resume::No,
             until: None,
+            // Timed against Blender on every core: none of its frames sent to one thread.
+            fixed_team: true,
         };
         let report = bake(&s, &options)?.report;
         let body = s.characters.first().map(|_| s.character_name(0));

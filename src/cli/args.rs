@@ -225,6 +225,11 @@ pub struct BakeArgs {
     /// Worker threads (default: every core; more than the cores are clamped, with a warning).
     #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
+    /// Run every frame on all the threads, even while the machine looks busy (for timing a
+    /// given number of threads; by default frames go to one thread while the team's waits keep
+    /// sleeping, and the report counts them in `backend.frames_on_one_thread`).
+    #[arg(long)]
+    pub fixed_threads: bool,
     /// Folder of characters' shell caches (default `$XDG_CACHE_HOME/drape`, else
     /// `~/.cache/drape`); a farm plan's bakes share the one its `shells.txt` fills.
     #[arg(long)]

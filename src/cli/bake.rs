@@ -224,6 +224,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<i32> {
             (None, false) => Resume::No,
         },
         until: args.until,
+        fixed_team: args.fixed_threads,
     };
     stop_on_signals();
     let result = bake(&scene, &options)?;

@@ -126,12 +126,18 @@ pub struct Member<'a> {
     handed: &'a [Left],
     /// This thread's handoffs so far.
     handoffs: std::cell::Cell<u64>,
+    /// This thread's balanced stages so far in this region, wrapping (which stage `left`'s
+    /// words are of).
+    balanced_stages: std::cell::Cell<u8>,
 }
 
 /// What is left of one thread's particles in a balanced stage ([`Member::balanced`]): the
-/// positions `front..back` in its own list, packed in one word so that the owner (taking from the
-/// front) and a thread done early (taking from the back) never take the same particle. Padded to a
-/// cache line of its own: the owner updates it for every chunk.
+/// positions `front..back` in its own list and the stage they are of, packed in one word so that
+/// the owner (taking from the front) and a thread done early (taking from the back) never take
+/// the same particle. Whichever thread comes to a share first in a stage opens it (the owner at
+/// its start, or a thread done with its own), so a thread that starts late (woken late from the
+/// last barrier, or descheduled) finds its share taken from the back instead of the others idle
+/// at the next barrier. Padded to a cache line of its own: the owner updates it for every chunk.
 #[repr(align(64))]
 #[derive(Default)]
 struct Left(AtomicU64);
@@ -139,21 +145,45 @@ struct Left(AtomicU64);
 /// Particles taken at a time in a balanced stage.
 const CHUNK: u64 = 32;
 
+/// Bits of a share's front and back each ([`Left`]; the stage takes the 8 above them).
+const POSITION_BITS: u32 = 28;
+const POSITION_MASK: u64 = (1 << POSITION_BITS) - 1;
+
+/// The most particles one thread's share of a balanced stage may hold.
+pub const MOST_PER_SHARE: usize = POSITION_MASK as usize;
+
 impl Left {
+    fn pack(stage: u8, front: u64, back: u64) -> u64 {
+        (stage as u64) << (2 * POSITION_BITS) | front << POSITION_BITS | back
+    }
+
+    /// Opens the share for `stage` with `len` positions, unless a thread opened it already.
+    fn open(&self, stage: u8, len: usize) {
+        let mut now = self.0.load(Ordering::Acquire);
+        while (now >> (2 * POSITION_BITS)) as u8 != stage {
+            let next = Self::pack(stage, 0, len as u64);
+            match (self.0).compare_exchange_weak(now, next, Ordering::AcqRel, Ordering::Acquire) {
+                Ok(_) => return,
+                Err(seen) => now = seen,
+            }
+        }
+    }
+
     /// Takes up to [`CHUNK`] positions from the front (`owner`) or the back; None when none is
     /// left.
     fn take(&self, owner: bool) -> Option<std::ops::Range<u64>> {
         let mut now = self.0.load(Ordering::Acquire);
         loop {
-            let (front, back) = (now >> 32, now & 0xffff_ffff);
+            let stage = (now >> (2 * POSITION_BITS)) as u8;
+            let (front, back) = (now >> POSITION_BITS & POSITION_MASK, now & POSITION_MASK);
             if front >= back {
                 return None;
             }
             let n = CHUNK.min(back - front);
             let (next, taken) = if owner {
-                ((front + n) << 32 | back, front..front + n)
+                (Self::pack(stage, front + n, back), front..front + n)
             } else {
-                (front << 32 | (back - n), back - n..back)
+                (Self::pack(stage, front, back - n), back - n..back)
             };
             match self
                 .0
@@ -201,14 +231,20 @@ impl Member<'_> {
             first();
             return visit(0, 0..order.len() as u64);
         }
-        self.left[index]
-            .0
-            .store(share(index).len() as u64, Ordering::Release);
+        assert!(
+            order.len().div_ceil(count) <= MOST_PER_SHARE,
+            "a balanced stage of {} particles on {count} threads",
+            order.len()
+        );
+        let stage = self.balanced_stages.get().wrapping_add(1);
+        self.balanced_stages.set(stage);
+        self.left[index].open(stage, share(index).len());
         first();
         while let Some(taken) = self.left[index].take(true) {
             visit(index, taken);
         }
         for other in (1..count).map(|k| (index + k) % count) {
+            self.left[other].open(stage, share(other).len());
             while let Some(taken) = self.left[other].take(false) {
                 visit(other, taken);
             }
@@ -295,6 +331,10 @@ pub struct Sharing {
     adaptive: bool,
     /// Frames run on one thread so far.
     pub solo_frames: u32,
+    /// Over every region so far: the team's waits at barriers (each thread but the last to
+    /// arrive), and those that ended asleep (the thread waited for had no core).
+    pub waits: u64,
+    pub waits_asleep: u64,
     /// The current frame's regions: their barriers and the waits that slept at them.
     frame: RegionStats,
 }
@@ -312,6 +352,8 @@ impl Default for Sharing {
             solo_seconds: None,
             adaptive: true,
             solo_frames: 0,
+            waits: 0,
+            waits_asleep: 0,
             frame: RegionStats::default(),
         }
     }
@@ -347,6 +389,14 @@ impl Sharing {
     pub fn count(&mut self, region: RegionStats) {
         self.frame.barriers += region.barriers;
         self.frame.slept += region.slept;
+        self.waits += region.barriers * (region.threads.max(1) as u64 - 1);
+        self.waits_asleep += region.slept;
+    }
+
+    /// The share of the team's barrier waits so far that ended asleep (None before any wait):
+    /// near 0 on an otherwise idle machine, high when its cores run other work.
+    pub fn asleep_share(&self) -> Option<f64> {
+        (self.waits > 0).then(|| self.waits_asleep as f64 / self.waits as f64)
     }
 
     /// After the current frame, which took `seconds` ([`Sharing::after_frame`] with the
@@ -400,6 +450,7 @@ pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
             left: &left,
             handed: &handed,
             handoffs: Default::default(),
+            balanced_stages: Default::default(),
         });
         return RegionStats {
             threads,
@@ -414,6 +465,7 @@ pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
             left: &left,
             handed: &handed,
             handoffs: Default::default(),
+            balanced_stages: Default::default(),
         };
         if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| body(&member)))
         {
@@ -558,6 +610,31 @@ mod tests {
         });
     }
 
+    /// The share of waits asleep counts every region of a team of more than one, solo or whole
+    /// team alike: each barrier is a wait for all but the last thread to arrive.
+    #[test]
+    fn waits_asleep_are_a_share_of_every_region_s_waits() {
+        let mut s = Sharing::whole_team();
+        assert_eq!(s.asleep_share(), None);
+        s.count(RegionStats {
+            threads: 1,
+            ..RegionStats::default()
+        });
+        assert_eq!(s.asleep_share(), None, "one thread waits for nobody");
+        s.count(RegionStats {
+            barriers: 10,
+            slept: 3,
+            threads: 2,
+        });
+        s.count(RegionStats {
+            barriers: 10,
+            slept: 9,
+            threads: 4,
+        });
+        assert_eq!((s.waits, s.waits_asleep), (40, 12));
+        assert_eq!(s.asleep_share(), Some(0.3));
+    }
+
     /// Every particle of a balanced stage is visited exactly once, whatever the team's size and
     /// however uneven the work (the first particles cost far more, so the others' threads take
     /// from their shares), stage after stage.
@@ -576,9 +653,10 @@ mod tests {
                 run(threads, |m: &Member| {
                     // Four stages at least, and on until some thread has taken work from a
                     // share not its own (up to 100): whether a given stage steals depends on
-                    // how the OS schedules the team (a thread that starts late finds nothing
-                    // left to take; four stages without a steal happened once on a loaded
-                    // 2-core VM).
+                    // how the OS schedules the team. A thread that starts late has its share
+                    // taken from the back (before shares were opened by whoever came first,
+                    // the early thread found nothing to take: no steal in 100 stages, half the
+                    // runs on a 2-core VM whose threads slept at each barrier).
                     for round in 1..=100 {
                         m.balanced(&order, |i| {
                             visits[i].fetch_add(1, Ordering::Relaxed);
@@ -605,7 +683,7 @@ mod tests {
                 })
             });
             let rounds = rounds.load(Ordering::Relaxed);
-            assert!(rounds >= 4, "{rounds}");
+            assert!(rounds >= 4, "{rounds} on {threads} threads");
             for (i, v) in visits.iter().enumerate() {
                 assert_eq!(
                     v.load(Ordering::Relaxed),
@@ -626,12 +704,19 @@ mod tests {
     #[test]
     fn owner_and_thief_take_disjoint_chunks() {
         let left = Left::default();
-        left.0.store(100, Ordering::Relaxed);
+        left.open(1, 100);
         assert_eq!(left.take(true), Some(0..32));
         assert_eq!(left.take(false), Some(68..100));
         assert_eq!(left.take(true), Some(32..64));
         assert_eq!(left.take(false), Some(64..68));
         assert_eq!(left.take(true), None);
         assert_eq!(left.take(false), None);
+        // Opened again for the same stage (its owner, late): what was taken stays taken.
+        left.open(1, 100);
+        assert_eq!(left.take(true), None);
+        // The next stage starts afresh.
+        left.open(2, 40);
+        assert_eq!(left.take(false), Some(8..40));
+        assert_eq!(left.take(true), Some(0..8));
     }
 }

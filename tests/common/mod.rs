@@ -163,6 +163,7 @@ pub fn bake_options(out: &Path) -> drape::bake::BakeOptions {
         shell_cache: Some(out.with_file_name("cache")),
         resume: drape::bake::Resume::No,
         until: None,
+        fixed_team: false,
     }
 }
 
