@@ -3,7 +3,10 @@
 //! particle-iteration and per spring-iteration, on each thread
 //! count asked for, with each scene's stages: issue 37's benchmark as a command. Rounds are
 //! interleaved (every scene once per round) and each ratio is taken within its round, since a
-//! shared machine's speed drifts between rounds more than between two bakes of one round.
+//! shared machine's speed drifts between rounds more than between two bakes of one round; the
+//! table also gives each scene's least time over the rounds against H's least (a busy machine
+//! only adds time, so the least is each bake at its quietest). Every bake keeps the threads it
+//! is given (`BakeOptions::fixed_team`).
 
 use super::chart::write_atomically;
 use crate::error::{Error, Result};
@@ -224,7 +227,7 @@ fn median(mut values: Vec<f64>) -> f64 {
 /// round and thread count.
 fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
     let mut md = String::from(
-        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | ns per spring-iteration (× H) | collisions and shells × solve | team waits asleep (most) | frames hash |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | × H with bend springs, least | ns per spring-iteration (× H) | collisions and shells × solve | team waits asleep (most) | frames hash |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     // The bake labelled `reference` of the same round and thread count.
     let bake_of = |reference: &str, round: u32, threads: usize| {
@@ -254,8 +257,19 @@ fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
                 )
             };
             let ratio = |f: fn(&Timed) -> f64| ratio_to(reference, f);
+            // The least over the rounds against the reference's least: each at its quietest
+            // (a busy machine only adds time).
+            let least_of = |label: &str| {
+                (timed.iter())
+                    .filter(|(l, t)| l == label && t.threads == n)
+                    .map(|(_, t)| t.per_particle())
+                    .reduce(f64::min)
+            };
+            let least = least_of(label)
+                .zip(least_of(SAME_MODEL))
+                .map_or(f64::NAN, |(a, b)| a / b);
             md.push_str(&format!(
-                "| {label} | {n} | {} | {:.2} | {:.2} | {:.1} ({:.2}) | {:.2} | {:.2} ({:.2}) | {:.2} | {} | {} |\n",
+                "| {label} | {n} | {} | {:.2} | {:.2} | {:.1} ({:.2}) | {:.2} | {least:.2} | {:.2} ({:.2}) | {:.2} | {} | {} |\n",
                 first.particles,
                 first.springs as f64 / first.particles as f64,
                 median(runs.iter().map(|t| t.ms_per_frame).collect()),
