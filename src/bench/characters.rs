@@ -65,8 +65,8 @@ struct Timed {
     solve: f64,
     collisions: f64,
     hash: String,
-    /// The share of the team's barrier waits that slept (None on one thread): how busy the
-    /// machine was ([`crate::report::Backend::team_waits_asleep`]).
+    /// The share of the team's waits that spun out (None on one thread): how busy the machine
+    /// was ([`crate::report::Backend::team_waits_asleep`]).
     asleep: Option<f64>,
 }
 
@@ -155,7 +155,7 @@ pub fn run(
                         t.ms_per_frame,
                         t.per_particle(),
                         t.asleep.map_or(String::new(), |a| format!(
-                            ", {:.1} % of the team's waits asleep",
+                            ", {:.1} % of the team's waits spun out",
                             100.0 * a
                         ))
                     ));
@@ -227,7 +227,7 @@ fn median(mut values: Vec<f64>) -> f64 {
 /// round and thread count.
 fn table(timed: &[(String, Timed)], threads: &[usize]) -> String {
     let mut md = String::from(
-        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | × H with bend springs, least | ns per spring-iteration (× H) | collisions and shells × solve | team waits asleep (most) | frames hash |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | threads | particles | springs per particle | ms/frame (median) | ns per particle-iteration (× H) | × H with bend springs | × H with bend springs, least | ns per spring-iteration (× H) | collisions and shells × solve | team waits spun out (most) | frames hash |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     // The bake labelled `reference` of the same round and thread count.
     let bake_of = |reference: &str, round: u32, threads: usize| {

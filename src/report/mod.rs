@@ -243,8 +243,9 @@ pub struct Backend {
     /// Frames the CPU backend ran on one of them because the machine was busy (the team's
     /// threads kept waiting for each other: `sim::team::Sharing`); the same frames either way.
     pub frames_on_one_thread: u32,
-    /// The share of the CPU team's barrier waits that ended asleep over the bake (null on one
-    /// thread and on the GPU): near 0 on an otherwise idle machine, high when other work held
+    /// The share of the CPU team's waits that spun out over the bake: asleep at a barrier, or
+    /// yielding the core while waiting for another thread's hand-off between barriers (null on
+    /// one thread and on the GPU). Near 0 on an otherwise idle machine, high when other work held
     /// its cores (another bake, a busy virtual machine's host). Timings of a bake with a high
     /// share say more about the machine than about drape.
     pub team_waits_asleep: Option<f64>,

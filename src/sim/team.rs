@@ -129,6 +129,10 @@ pub struct Member<'a> {
     /// This thread's balanced stages so far in this region, wrapping (which stage `left`'s
     /// words are of).
     balanced_stages: std::cell::Cell<u8>,
+    /// This thread's waits for another's progress outside the barrier ([`Member::wait_until`])
+    /// in this region, and those that spun out and yielded the core.
+    waits: std::cell::Cell<u64>,
+    waits_spun_out: std::cell::Cell<u64>,
 }
 
 /// What is left of one thread's particles in a balanced stage ([`Member::balanced`]): the
@@ -253,8 +257,13 @@ impl Member<'_> {
 
     /// Spins until `done` holds, yielding the core after a while (a team larger than the
     /// machine's cores); panics when another thread of the team has panicked, which then
-    /// never makes it hold.
+    /// never makes it hold. A call that finds `done` false counts as a wait in the region's
+    /// [`RegionStats`], and as spun out once it yields.
     pub fn wait_until(&self, done: impl Fn() -> bool) {
+        if done() {
+            return;
+        }
+        self.waits.set(self.waits.get() + 1);
         let mut spins = 0u32;
         while !done() {
             self.barrier.check();
@@ -262,6 +271,9 @@ impl Member<'_> {
             if spins < SPINS {
                 std::hint::spin_loop();
             } else {
+                if spins == SPINS {
+                    self.waits_spun_out.set(self.waits_spun_out.get() + 1);
+                }
                 std::thread::yield_now();
             }
         }
@@ -298,15 +310,34 @@ impl Member<'_> {
     }
 }
 
-/// How a team region went: its barriers, and the waits at them that spun out and slept.
+/// How a team region went: its barriers and the waits at them that spun out and slept, and
+/// its threads' waits for each other's progress between barriers (hand-offs, a placement's
+/// parts) and those of them that spun out and yielded the core.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RegionStats {
     /// Barriers the team passed.
     pub barriers: u64,
     /// Waits (of the threads not last to arrive) that ended asleep.
     pub slept: u64,
+    /// Waits between barriers ([`Member::wait_until`]), and those that yielded the core.
+    pub waits_between: u64,
+    pub yielded: u64,
     /// Threads in the team.
     pub threads: usize,
+}
+
+impl RegionStats {
+    /// Every wait of the region: each barrier's, for all but the last thread to arrive, and
+    /// those between barriers.
+    pub fn waits(&self) -> u64 {
+        self.barriers * (self.threads.max(1) as u64 - 1) + self.waits_between
+    }
+
+    /// The waits that spun out: asleep at a barrier, or yielding the core between barriers
+    /// (the thread waited for had no core, or a long stretch of work).
+    pub fn spun_out(&self) -> u64 {
+        self.slept + self.yielded
+    }
 }
 
 /// Who runs the team's regions, frame by frame: the whole pool, or the calling thread alone
@@ -314,7 +345,8 @@ pub struct RegionStats {
 /// at nearly every barrier for a thread the OS has descheduled: measured on P, its waits slept
 /// at 0–0.2 % of the barriers alone and at 45–100 % with a second bake running, and two bakes
 /// at once each took 3.0–3.5 × one alone, where one thread each would take 1.9 ×. So a frame
-/// whose waits slept at more than a quarter of its barriers sends the next frames to one thread;
+/// more than a quarter of whose waits spun out ([`RegionStats::spun_out`]: asleep at a barrier,
+/// or yielding at a hand-off between barriers) sends the next frames to one thread;
 /// then one frame tries the whole team again, and a busy machine doubles the solo stretch (up to
 /// [`MOST_SOLO`] frames), unless that frame took less than three quarters of the last solo
 /// frame's time: a team slowed by the machine but still faster keeps going. Frames are the same
@@ -331,11 +363,11 @@ pub struct Sharing {
     adaptive: bool,
     /// Frames run on one thread so far.
     pub solo_frames: u32,
-    /// Over every region so far: the team's waits at barriers (each thread but the last to
-    /// arrive), and those that ended asleep (the thread waited for had no core).
+    /// Over every region so far: the team's waits ([`RegionStats::waits`]), and those that
+    /// spun out (the thread waited for had no core): asleep at a barrier or yielding.
     pub waits: u64,
     pub waits_asleep: u64,
-    /// The current frame's regions: their barriers and the waits that slept at them.
+    /// The current frame's regions: their waits, and those that spun out.
     frame: RegionStats,
 }
 
@@ -389,12 +421,15 @@ impl Sharing {
     pub fn count(&mut self, region: RegionStats) {
         self.frame.barriers += region.barriers;
         self.frame.slept += region.slept;
-        self.waits += region.barriers * (region.threads.max(1) as u64 - 1);
-        self.waits_asleep += region.slept;
+        self.frame.waits_between += region.waits_between;
+        self.frame.yielded += region.yielded;
+        self.waits += region.waits();
+        self.waits_asleep += region.spun_out();
     }
 
-    /// The share of the team's barrier waits so far that ended asleep (None before any wait):
-    /// near 0 on an otherwise idle machine, high when its cores run other work.
+    /// The share of the team's waits so far that spun out, asleep at a barrier or yielding
+    /// between barriers (None before any wait): near 0 on an otherwise idle machine, high when
+    /// its cores run other work.
     pub fn asleep_share(&self) -> Option<f64> {
         (self.waits > 0).then(|| self.waits_asleep as f64 / self.waits as f64)
     }
@@ -417,12 +452,12 @@ impl Sharing {
             self.solo_seconds = Some(seconds);
             return;
         }
-        let waits = stats.barriers * (stats.threads.max(1) as u64 - 1);
+        let waits = stats.waits();
         if waits == 0 {
             return;
         }
         let team_pays = self.solo_seconds.is_some_and(|solo| seconds < 0.75 * solo);
-        if stats.slept * 4 > waits && !team_pays {
+        if stats.spun_out() * 4 > waits && !team_pays {
             self.solo_left = self.stretch;
             self.stretch = (self.stretch * 2).min(MOST_SOLO);
         } else {
@@ -451,12 +486,15 @@ pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
             handed: &handed,
             handoffs: Default::default(),
             balanced_stages: Default::default(),
+            waits: Default::default(),
+            waits_spun_out: Default::default(),
         });
         return RegionStats {
             threads,
             ..RegionStats::default()
         };
     }
+    let (waits_between, yielded) = (AtomicU64::new(0), AtomicU64::new(0));
     rayon::broadcast(|ctx| {
         let member = Member {
             index: ctx.index(),
@@ -466,16 +504,23 @@ pub fn run(threads: usize, body: impl Fn(&Member) + Sync) -> RegionStats {
             handed: &handed,
             handoffs: Default::default(),
             balanced_stages: Default::default(),
+            waits: Default::default(),
+            waits_spun_out: Default::default(),
         };
         if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| body(&member)))
         {
             barrier.break_it();
             std::panic::resume_unwind(panic);
         }
+        // Once per thread and region: the counts stay off the shared lines while it runs.
+        waits_between.fetch_add(member.waits.get(), Ordering::Relaxed);
+        yielded.fetch_add(member.waits_spun_out.get(), Ordering::Relaxed);
     });
     RegionStats {
         barriers: barrier.generation.load(Ordering::Acquire) as u64,
         slept: barrier.slept.load(Ordering::Relaxed) as u64,
+        waits_between: waits_between.into_inner(),
+        yielded: yielded.into_inner(),
         threads,
     }
 }
@@ -569,6 +614,7 @@ mod tests {
                 barriers: 800,
                 slept,
                 threads: 2,
+                ..RegionStats::default()
             };
             let solo = RegionStats {
                 threads: 1,
@@ -603,6 +649,19 @@ mod tests {
                 t == 1
             });
             assert_eq!(alone.count() as u32, FIRST_SOLO);
+            // Waits between barriers count with them: quiet barriers, but hand-offs that yield
+            // at more than a quarter of all waits, send the next frames to one thread.
+            s.after_frame(team(0), 0.01);
+            assert_eq!(s.threads(), 2);
+            let handing = |yielded| RegionStats {
+                waits_between: 200,
+                yielded,
+                ..team(0)
+            };
+            s.after_frame(handing(250), 0.02);
+            assert_eq!(s.threads(), 2, "a quarter exactly");
+            s.after_frame(handing(251), 0.02);
+            assert_eq!(s.threads(), 1);
             // A benchmark's team stays whole.
             let mut whole = Sharing::whole_team();
             whole.after_frame(team(800), 0.05);
@@ -625,14 +684,55 @@ mod tests {
             barriers: 10,
             slept: 3,
             threads: 2,
+            ..RegionStats::default()
         });
         s.count(RegionStats {
             barriers: 10,
             slept: 9,
             threads: 4,
+            ..RegionStats::default()
         });
         assert_eq!((s.waits, s.waits_asleep), (40, 12));
         assert_eq!(s.asleep_share(), Some(0.3));
+        // Waits between barriers (hand-offs) and those that yielded count too.
+        s.count(RegionStats {
+            barriers: 5,
+            slept: 0,
+            waits_between: 55,
+            yielded: 18,
+            threads: 2,
+        });
+        assert_eq!((s.waits, s.waits_asleep), (100, 30));
+    }
+
+    /// A thread that waits for another's hand-off counts one wait, and one spun out when the
+    /// other is long in coming (here it sleeps); a wait already met counts none.
+    #[test]
+    fn a_region_counts_its_waits_between_barriers_and_those_that_yielded() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a pool");
+        let stats = pool.install(|| {
+            run(2, |m: &Member| {
+                if m.index == 0 {
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                    m.hand_off();
+                } else {
+                    m.wait_for(0, 0);
+                    m.wait_for(0, 1);
+                }
+                m.sync();
+                // Both past the barrier: thread 0's hand-off is there already.
+                if m.index == 1 {
+                    m.wait_for(0, 1);
+                }
+            })
+        });
+        assert_eq!((stats.waits_between, stats.yielded), (1, 1));
+        assert_eq!(stats.waits(), 2, "one at the barrier, one between");
+        let alone = run(1, |m: &Member| m.wait_for(0, 0));
+        assert_eq!((alone.waits_between, alone.yielded), (0, 0));
     }
 
     /// Every particle of a balanced stage is visited exactly once, whatever the team's size and
