@@ -736,6 +736,9 @@ impl Region<'_> {
             if !recording {
                 return;
             }
+            // The sweeps handed over point to point (`solver::two`, `solver::seams`) end
+            // without a barrier: every thread's last colour done before the leader reads.
+            m.sync();
             if m.leads() {
                 // SAFETY: between two syncs nobody writes x or Δ.
                 let (x, d) = unsafe { (buffers.x.read_all(), buffers.delta.read_all()) };

@@ -23,6 +23,7 @@ mod gauss_seidel;
 mod jacobi;
 mod pbd;
 mod rbgs;
+mod seams;
 pub(crate) mod two;
 
 use super::constraint::{spring_projection_scale, spring_row_solve};
@@ -80,6 +81,9 @@ struct Owned {
     /// end on the separator (0 otherwise): those it projects while thread 0 still sweeps the
     /// separator ([`two::Two`]).
     clear_of_separator: usize,
+    /// A model in one domain: where each thread's share of each colour has springs to the
+    /// others', for sweeps handed over at those seams ([`seams::Seams`]).
+    seams: Option<seams::Seams>,
 }
 
 impl Owned {
@@ -145,7 +149,10 @@ impl Owned {
             };
             lists[owner(first)].push(k as u32);
         }
-        Owned::from_lists(model, threads, lists)
+        Owned {
+            seams: (threads > 1).then(|| seams::Seams::new(model, threads)),
+            ..Owned::from_lists(model, threads, lists)
+        }
     }
 
     fn from_lists(model: &Model, threads: usize, lists: Vec<Vec<u32>>) -> Owned {
@@ -161,6 +168,7 @@ impl Owned {
             index,
             start,
             clear_of_separator: 0,
+            seams: None,
         }
     }
 
@@ -219,8 +227,10 @@ impl Solver {
         }
     }
 
-    /// Runs every iteration of one step on `b.delta`. `observe` runs on the whole team after every
-    /// sweep (inner iteration, or PBD iteration).
+    /// Runs every iteration of one step on `b.delta`. `observe` runs on every thread of the team
+    /// after each of its sweeps (inner iteration, or PBD iteration); sweeps handed over point to
+    /// point (`two`, `seams`) do not end at a barrier, so an `observe` that reads the state
+    /// syncs first.
     pub fn solve(
         &self,
         m: &Member,
@@ -258,6 +268,11 @@ impl Solver {
         iterations: u32,
     ) {
         let s = &self.settings;
+        let owned = self.owned.as_ref();
+        let seamed = owned.filter(|o| s.kind == SolverKind::Rbgs && o.threads == m.count);
+        if let Some(seams) = seamed.and_then(|o| o.seams.as_ref()) {
+            return seams.iterate(m, model, self, b, observe, iterations);
+        }
         for _ in 0..iterations {
             if s.kind == SolverKind::Pbd {
                 pbd::iterate(m, model, b, s.omega);

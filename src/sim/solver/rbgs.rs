@@ -7,7 +7,9 @@
 //! without a barrier between its interior colours: the first thread takes every colour's low side,
 //! the second its high side, then the first the separator's colours. The same colour order, so the
 //! same numbers, with two barriers a sweep instead of one a colour. A team of exactly two hands
-//! those sweeps over point to point instead ([`super::two`]).
+//! those sweeps over point to point instead ([`super::two`]). A larger model on a team that has
+//! prepared for it ([`super::Solver::prepare_for`]) hands its colours over at their seams
+//! instead of at barriers (`super::seams`): the same sweep, and this one is the reference.
 
 use super::{Buffers, Solver};
 use crate::sim::constraint::over_relax;
