@@ -203,10 +203,7 @@ impl Left {
 impl Member<'_> {
     /// This thread's contiguous share of `range` (shares differ by at most one index).
     pub fn share(&self, range: Range<usize>) -> Range<usize> {
-        let len = range.end - range.start;
-        let start = range.start + len * self.index / self.count;
-        let end = range.start + len * (self.index + 1) / self.count;
-        start..end
+        share_of(range, self.index, self.count)
     }
 
     /// Calls `each` for every particle of a stage in which each particle is computed alone, in
@@ -306,6 +303,13 @@ impl Member<'_> {
     pub fn leads(&self) -> bool {
         self.index == 0
     }
+}
+
+/// Thread `index`'s contiguous share of `range` on a team of `count` ([`Member::share`]; for
+/// plans made before the team runs).
+pub fn share_of(range: Range<usize>, index: usize, count: usize) -> Range<usize> {
+    let len = range.end - range.start;
+    range.start + len * index / count..range.start + len * (index + 1) / count
 }
 
 /// How a team region went: its barriers and the waits at them that spun out and slept, and

@@ -33,7 +33,7 @@
 use super::rbgs::update;
 use super::{project_springs, Buffers, Solver};
 use crate::sim::model::Model;
-use crate::sim::team::Member;
+use crate::sim::team::{share_of, Member};
 use std::ops::Range;
 
 /// Where each thread's share of each colour splits into its inside and its seam, and whom each
@@ -182,8 +182,7 @@ impl Seams {
 
 /// Thread `t`'s share of `range` on a team of `threads`, as [`Member::share`] cuts it.
 fn share(range: &Range<usize>, t: usize, threads: usize) -> Range<usize> {
-    let len = range.end - range.start;
-    range.start + len * t / threads..range.start + len * (t + 1) / threads
+    share_of(range.clone(), t, threads)
 }
 
 #[cfg(test)]
