@@ -115,6 +115,45 @@ fn gpu_backend_bakes_or_says_why_not() {
     assert!(stderr(&gs).contains("GPU"), "{}", stderr(&gs));
 }
 
+/// A scene the GPU cannot hold (a character's shell, one share of a buffer per substep, past
+/// the adapter's largest binding) is refused on the `gpu` backend before anything is written:
+/// exit 1, the shell's particles, the substeps and the sizes named, no output folder.
+#[test]
+fn a_scene_too_large_for_the_gpu_is_refused_before_anything_is_written() {
+    if common::gpu_context().is_none() {
+        return;
+    }
+    let dir = temp_dir();
+    let man =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("characters/CesiumMan/CesiumMan.glb");
+    // 20 000 substeps of CesiumMan's shell (9 870 particles of 48 bytes) are 9.5 GB, past any
+    // Vulkan adapter's binding (a 32-bit range), and fewer than the 65 535 workgroups of one
+    // dispatch.
+    let scene = format!(
+        r#"{{ "frames": 2, "substeps": 20000,
+              "garments": [{{ "resolution": [6, 6], "size": [0.4, 0.4], "position": [0, 1.8, 0] }}],
+              "characters": [{{ "name": "man", "file": {:?}, "clip": "0" }}] }}"#,
+        man.display().to_string()
+    );
+    write(dir.path(), "scene.json", &scene);
+    let out = drape(
+        dir.path(),
+        &["bake", "scene.json", "--out", "out", "--backend", "gpu"],
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("at 20000 substeps per frame need") && err.contains("MiB"),
+        "{err}"
+    );
+    assert!(!dir.path().join("out").exists(), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left, ["scene.json"], "only the scene should remain");
+}
+
 #[test]
 fn the_embedded_default_scene_is_scene_p_with_its_mannequin_written_to_the_cache() {
     let dir = temp_dir();
