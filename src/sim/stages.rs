@@ -5,7 +5,9 @@
 use super::integrate::Verlet;
 use super::team::{Member, Shared};
 use super::{constraint, solver, Model};
-use crate::collide::particles::{Finding, Grid, List, ListState, Near, ParticleCollisions};
+use crate::collide::particles::{
+    lists_from_pairs, Finding, Grid, List, ListState, Near, ParticleCollisions,
+};
 use crate::collide::{Collider, ShellCollider};
 use glam::Vec4;
 use std::sync::RwLock;
@@ -78,6 +80,8 @@ pub(super) struct Stages<'a> {
     /// Each particle's neighbour list, and where it was when the lists were made.
     pub(super) lists: Shared<List>,
     pub(super) anchors: Shared<Vec4>,
+    /// The pairs a remake finds, each once, to make the lists from.
+    pub(super) pairs: &'a std::sync::Mutex<Vec<(u32, u32)>>,
     /// How the substeps have been finding the pairs (written by the leader after the stage).
     pub(super) list_state: &'a std::sync::Mutex<ListState>,
     /// Whether they may keep lists (else every substep finds its pairs directly), and how many
@@ -182,6 +186,9 @@ impl Stages<'_> {
                 m.sync();
             }
         }
+        if finding == Finding::Remake {
+            self.remake_lists(m, pc, &q);
+        }
         let g = grid.read().expect("not poisoned");
         let mover_list = movers.list.read().expect("not poisoned");
         let patch = crate::collide::particles::Patch {
@@ -191,16 +198,6 @@ impl Stages<'_> {
         let pushes = self.pushes.expect("particle collisions have pushes");
         for i in model.particles_of(m.index, m.count) {
             unsafe {
-                if finding == Finding::Remake {
-                    // A pinned particle is never pushed: its anchor alone is kept (others'
-                    // lists go stale by its motion too).
-                    anchors.set(i, q(i));
-                    let list = match model.inv_mass[i] {
-                        0.0 => List::EMPTY,
-                        _ => pc.list(i, q(i), &g),
-                    };
-                    lists.set(i, list);
-                }
                 let list = lists.get(i);
                 let near = match finding {
                     Finding::Direct => Near::Grid,
@@ -223,6 +220,36 @@ impl Stages<'_> {
                 self.lists_reused.fetch_add(1, Relaxed);
             }
         }
+    }
+
+    /// Makes the neighbour lists again at `q` from the lists' grid, just built there: every
+    /// thread anchors its particles and finds their pairs, each pair once (a pinned particle
+    /// too: it is never pushed, but others' lists hold it); then the leader fills both
+    /// particles' lists from the pairs (few: most lists are empty).
+    fn remake_lists(&self, m: &Member, pc: &ParticleCollisions, q: &impl Fn(usize) -> Vec4) {
+        let g = self.grid.read().expect("not poisoned");
+        let mut found = Vec::new();
+        for i in self.model.particles_of(m.index, m.count) {
+            // SAFETY: each particle's anchor and list are written by its own thread here, and
+            // read by others only after the syncs below.
+            unsafe {
+                self.anchors.set(i, q(i));
+                self.lists.set(i, List::EMPTY);
+            }
+            pc.forward_pairs(i, q(i), &g, &mut found);
+        }
+        drop(g);
+        if !found.is_empty() {
+            self.pairs.lock().expect("not poisoned").extend(found);
+        }
+        m.sync();
+        if m.leads() {
+            let mut pairs = self.pairs.lock().expect("not poisoned");
+            // SAFETY: between the two syncs only the leader touches the lists.
+            lists_from_pairs(&pairs, unsafe { self.lists.write_all() });
+            pairs.clear();
+        }
+        m.sync();
     }
 
     /// This thread's particles the simulation moves (pinned and attached ones are never

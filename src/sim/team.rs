@@ -599,6 +599,15 @@ impl<T: Copy> Shared<T> {
     pub unsafe fn read_all(&self) -> &[T] {
         std::slice::from_raw_parts(self.ptr, self.len)
     }
+
+    /// The whole slice, for one thread to write.
+    ///
+    /// # Safety
+    /// No other thread reads or writes any element while the reference lives.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn write_all(&self) -> &mut [T] {
+        std::slice::from_raw_parts_mut(self.ptr, self.len)
+    }
 }
 
 #[cfg(test)]

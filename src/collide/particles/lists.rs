@@ -1,6 +1,6 @@
 //! Neighbour lists: each particle's candidates within a diameter and a margin, kept between
-//! substeps while they stay valid, and the state that chooses between remaking them and finding
-//! the pairs directly.
+//! substeps while they stay valid, made from the pairs found each once in the lists' grid, and
+//! the state that chooses between remaking them and finding the pairs directly.
 
 use super::grid::{Grid, NEAR};
 use super::{ParticleCollisions, PATCH_MOVERS, PATCH_SHARE};
@@ -35,8 +35,8 @@ pub enum Finding {
 }
 
 /// Substeps found directly after lists went stale at the first substep that used them: making
-/// lists looks at about twice the candidates of a direct search (cells three diameters wide
-/// against two), so they pay only when they last.
+/// lists costs more than a direct search (a reach of 1.75 diameters against one), so they pay
+/// only when they last.
 pub const DIRECT_RUN: u32 = 8;
 
 /// Which way the substeps find their pairs, kept between them. What they find does not depend
@@ -102,12 +102,6 @@ impl List {
     /// More neighbours than a list holds: walk the grid.
     const OVERFLOW: u32 = u32::MAX;
 
-    /// A list of too many to keep.
-    const OVERFLOW_LIST: List = List {
-        len: List::OVERFLOW,
-        ids: [0; LIST_CAPACITY],
-    };
-
     /// A list that holds nothing yet.
     pub const EMPTY: List = List {
         len: 0,
@@ -118,65 +112,153 @@ impl List {
     pub fn entries(&self) -> Option<&[u32]> {
         (self.len != Self::OVERFLOW).then(|| &self.ids[..self.len as usize])
     }
+
+    /// Adds particle `j` (a pair found twice adds it twice: [`Self::settle`] keeps one); a list
+    /// with no room for another particle becomes one of too many to keep.
+    pub fn add(&mut self, j: u32) {
+        if self.len as usize == LIST_CAPACITY {
+            self.settle();
+            if self.ids[..self.len as usize].contains(&j) {
+                return;
+            }
+        }
+        match self.len as usize {
+            len if len < LIST_CAPACITY => {
+                self.ids[len] = j;
+                self.len += 1;
+            }
+            _ => self.len = Self::OVERFLOW,
+        }
+    }
+
+    /// Puts the particles added in ascending order, each once.
+    pub fn settle(&mut self) {
+        let Some(entries) = self.entries() else {
+            return;
+        };
+        let mut ids = self.ids;
+        let ids = &mut ids[..entries.len()];
+        ids.sort_unstable();
+        let mut len = 0;
+        for k in 0..ids.len() {
+            if k == 0 || ids[k] != ids[k - 1] {
+                self.ids[len] = ids[k];
+                len += 1;
+            }
+        }
+        self.len = len as u32;
+    }
+}
+
+/// Fills each particle's neighbour list in `lists` (empty before) from the pairs within a
+/// list's reach ([`ParticleCollisions::forward_pairs`] of every particle): each pair adds each
+/// of its two particles to the other's list.
+pub fn lists_from_pairs(pairs: &[(u32, u32)], lists: &mut [List]) {
+    for &(i, j) in pairs {
+        lists[i as usize].add(j);
+        lists[j as usize].add(i);
+    }
+    for &(i, j) in pairs {
+        lists[i as usize].settle();
+        lists[j as usize].settle();
+    }
 }
 
 impl ParticleCollisions {
-    /// The neighbour list of particle `i` at `p`, from `grid` built at the same positions.
-    pub fn list(&self, i: usize, p: Vec4, grid: &Grid) -> List {
-        let reach_squared = self.list_reach() * self.list_reach();
-        let Some((near, count)) = self.gather_by_four(p, grid, reach_squared) else {
-            return List::OVERFLOW_LIST;
-        };
-        let mut list = List::EMPTY;
-        for &j in &near[..count] {
-            let j = j as usize;
-            if j == i || self.joined(i, j) {
-                continue;
-            }
-            if list.len as usize == LIST_CAPACITY {
-                return List::OVERFLOW_LIST;
-            }
-            list.ids[list.len as usize] = j as u32;
-            list.len += 1;
-        }
-        list.ids[..list.len as usize].sort_unstable();
-        list
-    }
-
-    /// [`Self::gather`] within `reach_squared` of `p` by the positions the grid was built at,
-    /// four candidates at a time (a list is made from about 64 candidates, 9 of them near).
-    fn gather_by_four(
-        &self,
-        p: Vec4,
-        grid: &Grid,
-        reach_squared: f32,
-    ) -> Option<([u32; NEAR], usize)> {
-        let (buckets, seen) = self.block(p, grid);
+    /// Adds to `out` the pairs (i, j) of particle `i` at `p` with the particles within a list's
+    /// reach of it in `grid` (the lists' grid, built at the same positions) but its lattice
+    /// neighbours, each pair once over all particles: j in one of the 13 cells after i's own
+    /// in (z, y, x) order, or later than i in its own cell (six runs of the rows: `grid.rs`).
+    /// Two cells may share a bucket: a pair may then come twice ([`List::settle`] keeps one).
+    pub fn forward_pairs(&self, i: usize, p: Vec4, grid: &Grid, out: &mut Vec<(u32, u32)>) {
+        let reach = self.list_reach();
+        let (c, _) = Self::cell_of(p, grid.inv_cell);
+        let y = [-1, 0, 1].map(|o: i32| c[1].wrapping_add(o));
+        let z = [0, 1].map(|o: i32| c[2].wrapping_add(o));
+        let row = |y: i32, z: i32| Self::row_hash(y, z);
+        // (row, first cell, cells): i's own cell, the next along x, then the rows above.
+        let runs = [
+            (row(y[1], z[0]), 0, 1),
+            (row(y[1], z[0]), 1, 1),
+            (row(y[2], z[0]), -1, 3),
+            (row(y[0], z[1]), -1, 3),
+            (row(y[1], z[1]), -1, 3),
+            (row(y[2], z[1]), -1, 3),
+        ];
         let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
-        let reach = Vec4::splat(reach_squared);
+        let reach_squared = Vec4::splat(reach * reach);
         let mut near = [0u32; NEAR];
         let mut count = 0usize;
-        for &b in &buckets[..seen] {
-            let (start, end) = (grid.start[b] as usize, grid.start[b + 1] as usize);
-            let (items, xs) = (&grid.items[start..end], &grid.xs[start..end]);
-            let (ys, zs) = (&grid.ys[start..end], &grid.zs[start..end]);
-            let whole = items.len() / 4 * 4;
-            for k in (0..whole).step_by(4) {
-                let dx = Vec4::from_slice(&xs[k..k + 4]) - px;
-                let dy = Vec4::from_slice(&ys[k..k + 4]) - py;
-                let dz = Vec4::from_slice(&zs[k..k + 4]) - pz;
-                let within = (dx * dx + dy * dy + dz * dz).cmplt(reach).bitmask() as usize;
-                for lane in 0..4 {
-                    near[count.min(NEAR - 1)] = items[k + lane];
-                    count += within >> lane & 1;
+        for (k, &(row, x, cells)) in runs.iter().enumerate() {
+            let first = self.row_bucket(row, c[0].wrapping_add(x));
+            let last = first + cells - 1;
+            // A run past the table's end goes on from its start.
+            let end = grid.start[last.min(self.table - 1) + 1] as usize;
+            let wrapped = last.saturating_sub(self.table - 1);
+            let spans = [
+                (grid.start[first] as usize, end),
+                (0, grid.start[wrapped] as usize),
+            ];
+            for (mut at, end) in spans.into_iter().take(1 + (wrapped > 0) as usize) {
+                // Four at a time (the last four masked past the end: `PADDING`), without a
+                // branch per candidate: each is written, and counted when near.
+                while at < end {
+                    let dx = Vec4::from_slice(&grid.xs[at..at + 4]) - px;
+                    let dy = Vec4::from_slice(&grid.ys[at..at + 4]) - py;
+                    let dz = Vec4::from_slice(&grid.zs[at..at + 4]) - pz;
+                    let lanes = (1usize << (end - at).min(4)) - 1;
+                    let mut within = (dx * dx + dy * dy + dz * dz).cmplt(reach_squared).bitmask()
+                        as usize
+                        & lanes;
+                    if k == 0 {
+                        // In its own cell, only those after it.
+                        for lane in 0..4 {
+                            within &= !(((grid.items[at + lane] as usize <= i) as usize) << lane);
+                        }
+                    }
+                    for lane in 0..4 {
+                        near[count.min(NEAR - 1)] = grid.items[at + lane];
+                        count += within >> lane & 1;
+                    }
+                    at += 4;
                 }
             }
-            for k in whole..items.len() {
-                let d = Vec4::new(xs[k], ys[k], zs[k], 0.0) - p.truncate().extend(0.0);
-                near[count.min(NEAR - 1)] = items[k];
-                count += (d.length_squared() < reach_squared) as usize;
+        }
+        if count >= NEAR {
+            // More near than gathered (a clump): again, one by one.
+            return self.forward_pairs_one_by_one(i, p, grid, out);
+        }
+        for &j in &near[..count] {
+            if !self.joined(i, j as usize) {
+                out.push((i as u32, j));
             }
         }
-        (count < NEAR).then_some((near, count))
+    }
+
+    /// [`Self::forward_pairs`] without a bound on the particles near (each candidate tested
+    /// and kept on its own).
+    #[cold]
+    fn forward_pairs_one_by_one(&self, i: usize, p: Vec4, grid: &Grid, out: &mut Vec<(u32, u32)>) {
+        let reach_squared = self.list_reach() * self.list_reach();
+        let (c, _) = Self::cell_of(p, grid.inv_cell);
+        let offsets = (0..=1)
+            .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| (dz, dy, dx))));
+        for (dz, dy, dx) in offsets.filter(|&o| o >= (0, 0, 0)) {
+            let cell = [
+                c[0].wrapping_add(dx),
+                c[1].wrapping_add(dy),
+                c[2].wrapping_add(dz),
+            ];
+            let b = self.row_bucket(Self::row_hash(cell[1], cell[2]), cell[0]);
+            for at in grid.start[b] as usize..grid.start[b + 1] as usize {
+                let j = grid.items[at] as usize;
+                let d = Vec4::new(grid.xs[at], grid.ys[at], grid.zs[at], 0.0)
+                    - p.truncate().extend(0.0);
+                let own = (dz, dy, dx) == (0, 0, 0);
+                if d.length_squared() < reach_squared && (!own || j > i) && !self.joined(i, j) {
+                    out.push((i as u32, j as u32));
+                }
+            }
+        }
     }
 }

@@ -14,17 +14,20 @@
 //! itself, which keeps a tight fold from closing through itself.
 //!
 //! Finding the pairs (CPU): a **neighbour list** per particle, the particles other than its
-//! lattice neighbours within a diameter and a margin ([`LIST_MARGIN`]) of it, found through a
-//! uniform hash grid whose cells are twice that reach wide, so that the 2 × 2 × 2 cells on the
-//! sides of a particle's nearest cell corner hold all of them (a counting sort). The lists stay
-//! valid until some particle has moved [`REBUILD_AT`] of the margin from where they were made (no
-//! pair can then have closed from beyond a list's reach to within a diameter), and are made
-//! again then, unless few particles have (the movers): then the lists are kept and the movers'
-//! pairs found apart ([`patch`]), to the same pairs. On cloth resting on a body most substeps
-//! reuse them, and most lists are empty (a flat sheet's particles two steps apart are two
-//! diameters apart). A list longer than [`LIST_CAPACITY`] is walked in the grid instead. The
-//! GPU sorts into a grid of cells two diameters wide every substep and walks it
-//! (`particles.wgsl`).
+//! lattice neighbours within a diameter and a margin ([`LIST_MARGIN`]) of it. The lists are made
+//! from a uniform hash grid whose cells are that reach wide, laid out in rows (a counting sort:
+//! `grid.rs`), in which each particle finds its pairs with the particles of the 13 cells after
+//! its own and the later ones of its own cell, so each pair is found once, and the pairs then
+//! fill both particles' lists. The lists stay valid until some particle has moved
+//! [`REBUILD_AT`] of the margin from where they were made (no pair can then have closed from
+//! beyond a list's reach to within a diameter), and are made again then, unless few particles
+//! have (the movers): then the lists are kept and the movers' pairs found apart ([`patch`]), to
+//! the same pairs. On cloth resting on a body most substeps reuse them, and most lists are
+//! empty (a flat sheet's particles two steps apart are two diameters apart). A list longer than
+//! [`LIST_CAPACITY`] is walked in the grid instead. Without lists (cloth moving too fast for
+//! them to last) the pairs are found directly in a grid of cells two diameters wide, whose 2 ×
+//! 2 × 2 cells on the sides of a particle's nearest cell corner hold every particle within a
+//! diameter of it, as the GPU does every substep (`particles.wgsl`).
 //!
 //! Here: the collisions' static data and the push; the grid and its walks in `grid.rs`; the
 //! lists and the choice between keeping, patching, remaking and going without them in
@@ -38,7 +41,9 @@ mod patch;
 mod tests;
 
 pub use grid::Grid;
-pub use lists::{Finding, List, ListState, DIRECT_RUN, LIST_CAPACITY, LIST_MARGIN, REBUILD_AT};
+pub use lists::{
+    lists_from_pairs, Finding, List, ListState, DIRECT_RUN, LIST_CAPACITY, LIST_MARGIN, REBUILD_AT,
+};
 pub use patch::{Patch, PATCH_MOVERS, PATCH_SHARE};
 
 use crate::garment::Garment;
@@ -101,12 +106,16 @@ impl ParticleCollisions {
 
     /// Memory the CPU backend's particle collisions take for `particles` particles [bytes]:
     /// their static data (garment and lattice cell), the grid (items, buckets, positions and
-    /// the table's starts and cursors), the neighbour lists with their anchors, the pushes, and
-    /// a patched substep's movers (a flag each for moving and touched, and their list).
+    /// the table's starts and cursors), the neighbour lists with their anchors and the pairs
+    /// they are made from, the pushes, and a patched substep's movers (a flag each for moving
+    /// and touched, and their list).
     pub fn memory_bytes(particles: usize) -> usize {
         let table = (2 * particles).next_power_of_two().max(16);
         let per_particle = 4 + 12 + (4 + 4 + 12) + (std::mem::size_of::<List>() + 16) + 16 + 2;
-        particles * per_particle + (2 * table + 1) * 4 + PATCH_MOVERS as usize * 4
+        let padding = grid::PADDING * (4 + 12);
+        // The pairs a remake finds: room for one a particle (P's lists hold 0.1–1 each).
+        let pairs = particles * 8;
+        particles * per_particle + padding + pairs + (2 * table + 1) * 4 + PATCH_MOVERS as usize * 4
     }
 
     /// Default radius for `garments`: half the smallest rest spacing, so neighbours at rest touch.

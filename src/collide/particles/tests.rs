@@ -15,11 +15,23 @@ fn pushes(x: [Vec4; 2], q: [Vec4; 2]) -> [Vec4; 2] {
     let mut grid = pc.grid();
     pc.build(|i| q[i], &mut grid, true);
     let inv_mass = [1.0, 1.0];
+    let lists = lists_at(&pc, &q, &grid);
     [0, 1].map(|i| {
-        let list = pc.list(i, q[i], &grid);
-        let near = Near::List(&list, q[i]);
+        let near = Near::List(&lists[i], q[i]);
         pc.push_out(i, near, (|k| x[k], |k| q[k]), &inv_mass, &grid)
     })
+}
+
+/// Every particle's neighbour list at positions `at`, as a remake makes them: each particle's
+/// pairs found in `grid` (built at `at` for the lists), then both lists of each pair filled.
+fn lists_at(pc: &ParticleCollisions, at: &[Vec4], grid: &Grid) -> Vec<List> {
+    let mut pairs = Vec::new();
+    for (i, p) in at.iter().enumerate() {
+        pc.forward_pairs(i, *p, grid, &mut pairs);
+    }
+    let mut lists = vec![List::EMPTY; at.len()];
+    lists_from_pairs(&pairs, &mut lists);
+    lists
 }
 
 /// `n` free particles of `n` garments (so none are lattice neighbours) in a cube of side
@@ -86,10 +98,10 @@ fn every_pair_within_a_diameter_is_pushed_wherever_it_lies_in_its_cell() {
         let expected = brute_pushes(&pc, &x, &q);
         let touching = expected.iter().filter(|p| **p != Vec4::ZERO).count();
         assert!(touching > 200, "{touching} particles touch another");
+        let lists = lists_at(&pc, &q, &for_lists);
         let (x, q) = (|k: usize| x[k], |k: usize| q[k]);
         for (i, want) in expected.iter().enumerate() {
-            let list = pc.list(i, q(i), &for_lists);
-            let near = Near::List(&list, q(i));
+            let near = Near::List(&lists[i], q(i));
             let got = pc.push_out(i, near, (x, q), &inv_mass, &for_lists);
             assert_eq!(got, *want, "particle {i}, shift {shift}, from its list");
             let got = pc.push_out(i, Near::Grid, (x, q), &inv_mass, &direct);
@@ -122,12 +134,11 @@ fn lists_made_before_the_particles_moved_push_as_fresh_ones_until_stale() {
     let inv_mass = vec![1.0; q.len()];
     let expected = brute_pushes(&pc, &before, &q);
     assert!(expected.iter().filter(|p| **p != Vec4::ZERO).count() > 100);
+    let (kept, new) = (lists_at(&pc, &before, &old), lists_at(&pc, &q, &fresh));
     for i in 0..q.len() {
         let (x, at) = (|k: usize| before[k], |k: usize| q[k]);
-        let kept = pc.list(i, before[i], &old);
-        let new = pc.list(i, q[i], &fresh);
-        let a = pc.push_out(i, Near::List(&kept, before[i]), (x, at), &inv_mass, &old);
-        let b = pc.push_out(i, Near::List(&new, q[i]), (x, at), &inv_mass, &fresh);
+        let a = pc.push_out(i, Near::List(&kept[i], before[i]), (x, at), &inv_mass, &old);
+        let b = pc.push_out(i, Near::List(&new[i], q[i]), (x, at), &inv_mass, &fresh);
         assert_eq!(a, expected[i], "particle {i}");
         assert_eq!(b, expected[i], "particle {i}");
     }
@@ -150,8 +161,9 @@ fn overflowing(n: usize) {
     let x: Vec<Vec4> = q.iter().map(|p| *p * 1.01).collect();
     let inv_mass = vec![1.0; q.len()];
     let expected = brute_pushes(&pc, &x, &q);
+    let lists = lists_at(&pc, &q, &grid);
     for (i, want) in expected.iter().enumerate() {
-        let list = pc.list(i, q[i], &grid);
+        let list = lists[i];
         assert!(list.entries().is_none(), "particle {i}'s list kept");
         let near = Near::List(&list, q[i]);
         let got = pc.push_out(i, near, (|k| x[k], |k| q[k]), &inv_mass, &grid);
@@ -234,8 +246,8 @@ fn an_overlap_without_a_crossing_is_pushed_apart_along_the_start_separation() {
 
 #[test]
 fn memory_bytes_counts_the_buffers_a_simulation_allocates() {
-    // The static data and a grid as built, per particle a list, an anchor, a push and two
-    // flags, and the movers' list (as `sim::Workspace` allocates them).
+    // The static data and a grid as built, per particle a list, an anchor, a push, two flags
+    // and room for a pair, and the movers' list (as `sim::Workspace` allocates them).
     for n in [1, 300, 4148] {
         let (pc, _) = cloud(n, 1.0, Vec4::ZERO, 0.01);
         let grid = pc.grid();
@@ -244,6 +256,7 @@ fn memory_bytes_counts_the_buffers_a_simulation_allocates() {
             + (grid.start.len() + grid.items.len() + grid.bucket.len() + grid.cursor.len()) * 4
             + (grid.xs.len() + grid.ys.len() + grid.zs.len()) * 4
             + n * (std::mem::size_of::<List>() + 16 + 16)
+            + n * std::mem::size_of::<(u32, u32)>()
             + n * 2
             + PATCH_MOVERS as usize * 4;
         assert_eq!(
@@ -279,7 +292,7 @@ fn lists_patched_past_a_few_movers_push_as_the_brute_force() {
         assert!(movers.len() >= n / 9, "{} movers", movers.len());
         let mut grid = pc.grid();
         pc.build(|i| before[i], &mut grid, true);
-        let lists: Vec<List> = (0..n).map(|i| pc.list(i, before[i], &grid)).collect();
+        let lists = lists_at(&pc, &before, &grid);
         let (x, at) = (|k: usize| before[k], |k: usize| q[k]);
         let is_mover = |j: usize| moving[j];
         let mut touched = vec![false; n];
@@ -307,4 +320,115 @@ fn lists_patched_past_a_few_movers_push_as_the_brute_force() {
             assert_eq!(got, expected[i], "particle {i} of {n}, mover {}", moving[i]);
         }
     }
+}
+
+/// Each particle's neighbour list by brute force over every pair: the particles but itself and
+/// its lattice neighbours nearer than a list's reach, ascending, or `None` past a list's
+/// capacity.
+fn brute_lists(pc: &ParticleCollisions, at: &[Vec4]) -> Vec<Option<Vec<u32>>> {
+    let reach_squared = pc.list_reach() * pc.list_reach();
+    (0..at.len())
+        .map(|i| {
+            let near: Vec<u32> = (0..at.len())
+                .filter(|&j| j != i && !pc.joined(i, j))
+                .filter(|&j| (at[i] - at[j]).truncate().length_squared() < reach_squared)
+                .map(|j| j as u32)
+                .collect();
+            (near.len() <= LIST_CAPACITY).then_some(near)
+        })
+        .collect()
+}
+
+/// A sheet of `n` × `n` particles of one garment, `spacing` apart at rest, folded over a
+/// cylinder so that its two ends lie `gap` apart, face to face: lattice neighbours along it, and
+/// particles of the other end across the gap.
+fn folded_sheet(
+    n: usize,
+    spacing: f32,
+    gap: f32,
+    radius: f32,
+    table: usize,
+) -> (ParticleCollisions, Vec<Vec4>) {
+    let bend = gap / 2.0;
+    let flat = (n as f32 * spacing - std::f32::consts::PI * bend) / 2.0;
+    let q = (0..n * n)
+        .map(|k| {
+            let (u, v) = ((k / n) as f32 * spacing, (k % n) as f32 * spacing);
+            let (x, y) = if u < flat {
+                (u, 0.0)
+            } else if u < flat + std::f32::consts::PI * bend {
+                let a = (u - flat) / bend;
+                (flat + bend * a.sin(), bend - bend * a.cos())
+            } else {
+                (flat - (u - flat - std::f32::consts::PI * bend), gap)
+            };
+            Vec4::new(x + 0.013, y - 0.4, v + 0.2, 0.0)
+        })
+        .collect();
+    let pc = ParticleCollisions {
+        radius,
+        garment: vec![0; n * n],
+        cell: (0..n * n)
+            .map(|k| [(k / n) as i32, (k % n) as i32, 0])
+            .collect(),
+        table,
+    };
+    (pc, q)
+}
+
+#[test]
+fn lists_made_from_pairs_found_once_are_the_brute_force_lists() {
+    // Each particle finds its pairs in the cells after its own (each pair once), and the pairs
+    // fill both lists: the same lists as the brute force over every pair, on a cloud (lists
+    // past their capacity included), on a sheet folded onto itself (its lattice neighbours left
+    // out, the other layer kept), on a clump where a particle has more pairs than it gathers
+    // at once, and with a table of 16 buckets, where rows of cells wrap past its end and share
+    // buckets with each other.
+    let radius = 0.01;
+    let spacing = 2.0 * radius;
+    let folded = |table| folded_sheet(24, spacing, 1.3 * spacing, radius, table);
+    let cases = [
+        cloud(400, 0.2, Vec4::new(0.31, -0.7, 1.3, 0.0), radius),
+        cloud(120, 0.05, Vec4::new(-0.2, 0.1, 0.0, 0.0), radius),
+        cloud(300, 0.03, Vec4::new(0.05, 0.0, -0.3, 0.0), radius),
+        folded(2048),
+        folded(16),
+        {
+            let (mut pc, q) = cloud(300, 0.15, Vec4::ZERO, radius);
+            pc.table = 16;
+            (pc, q)
+        },
+    ];
+    for (case, (pc, at)) in cases.iter().enumerate() {
+        let mut grid = pc.grid();
+        pc.build(|i| at[i], &mut grid, true);
+        let lists = lists_at(pc, at, &grid);
+        let want = brute_lists(pc, at);
+        // Something to compare: entries, or lists too long to keep.
+        let kept = want
+            .iter()
+            .map(|l| l.as_ref().map_or(1, |l| l.len()))
+            .sum::<usize>();
+        assert!(kept > at.len() / 4, "case {case}: {kept} entries");
+        for (i, (list, want)) in lists.iter().zip(&want).enumerate() {
+            assert_eq!(list.entries(), want.as_deref(), "case {case}, particle {i}");
+        }
+    }
+}
+
+#[test]
+fn a_list_takes_each_particle_once_up_to_its_capacity() {
+    let mut list = List::EMPTY;
+    for j in [9, 3, 9, 7, 3] {
+        list.add(j);
+    }
+    list.settle();
+    assert_eq!(list.entries(), Some(&[3, 7, 9][..]));
+    let mut full = List::EMPTY;
+    (0..LIST_CAPACITY as u32).rev().for_each(|j| full.add(j));
+    full.settle();
+    assert_eq!(full.entries().map(|e| e.len()), Some(LIST_CAPACITY));
+    full.add(99);
+    full.settle();
+    assert_eq!(full.entries(), None);
 }
