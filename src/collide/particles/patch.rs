@@ -8,7 +8,7 @@
 //! - Two particles that are not movers and touch were less than d + 2D < R apart at their
 //!   anchors, so each is in the other's list.
 //! - A particle j that is not a mover and touches a mover i at q is within d + D < R of q_i by its
-//!   anchor: it lies in the block of the lists' grid around q_i (cells 2R wide). The mover looks
+//!   anchor: it lies in the 27 cells of the lists' grid around q_i (cells R wide). The mover looks
 //!   there for the particles that are not movers, and marks each one it touches.
 //! - Movers and the particles they touch test every mover for the movers they touch: a patch
 //!   is taken only while they are at most [`PATCH_MOVERS`].
