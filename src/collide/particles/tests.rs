@@ -148,14 +148,17 @@ fn lists_made_before_the_particles_moved_push_as_fresh_ones_until_stale() {
 fn a_list_too_long_to_keep_walks_the_grid_to_the_same_push() {
     // 60 and 100 particles within 3 cm of each other at a 1 cm radius: every list
     // overflows, and the walk in the grid gives the brute force's pushes (with 100, more
-    // than `NEAR` lie near each: the merge of the buckets).
+    // than `NEAR` lie near each: the merge of the buckets). Also with a table of 16 buckets,
+    // where the rows around a point wrap and share buckets (walked bucket by bucket).
     for n in [60, 100] {
-        overflowing(n);
+        overflowing(n, None);
+        overflowing(n, Some(16));
     }
 }
 
-fn overflowing(n: usize) {
-    let (pc, q) = cloud(n, 0.03, Vec4::new(0.5, 0.5, 0.5, 0.0), 0.01);
+fn overflowing(n: usize, table: Option<usize>) {
+    let (mut pc, q) = cloud(n, 0.03, Vec4::new(0.5, 0.5, 0.5, 0.0), 0.01);
+    pc.table = table.unwrap_or(pc.table);
     let mut grid = pc.grid();
     pc.build(|i| q[i], &mut grid, true);
     let x: Vec<Vec4> = q.iter().map(|p| *p * 1.01).collect();
