@@ -27,7 +27,8 @@ pub struct Grid {
     /// Bucket of each particle.
     pub bucket: Vec<u32>,
     /// The position of each particle of `items`, in `items`' order, one coordinate a vector (a
-    /// bucket's candidates are read side by side, four at a time: [`ParticleCollisions::list`]).
+    /// run's candidates are read side by side, four at a time:
+    /// [`ParticleCollisions::forward_pairs`]).
     pub xs: Vec<f32>,
     pub ys: Vec<f32>,
     pub zs: Vec<f32>,
