@@ -171,94 +171,85 @@ impl ParticleCollisions {
     /// in (z, y, x) order, or later than i in its own cell (six runs of the rows: `grid.rs`).
     /// Two cells may share a bucket: a pair may then come twice ([`List::settle`] keeps one).
     pub fn forward_pairs(&self, i: usize, p: Vec4, grid: &Grid, out: &mut Vec<(u32, u32)>) {
-        let reach = self.list_reach();
-        let (c, _) = Self::cell_of(p, grid.inv_cell);
-        let y = [-1, 0, 1].map(|o: i32| c[1].wrapping_add(o));
-        let z = [0, 1].map(|o: i32| c[2].wrapping_add(o));
-        let row = |y: i32, z: i32| Self::row_hash(y, z);
-        // (row, first cell, cells): i's own cell, the next along x, then the rows above.
-        let runs = [
-            (row(y[1], z[0]), 0, 1),
-            (row(y[1], z[0]), 1, 1),
-            (row(y[2], z[0]), -1, 3),
-            (row(y[0], z[1]), -1, 3),
-            (row(y[1], z[1]), -1, 3),
-            (row(y[2], z[1]), -1, 3),
-        ];
+        let spans = self.forward_spans(p, grid);
         let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
-        let reach_squared = Vec4::splat(reach * reach);
+        let reach_squared = self.list_reach() * self.list_reach();
+        let reach = Vec4::splat(reach_squared);
         let mut near = [0u32; NEAR];
         let mut count = 0usize;
-        for (k, &(row, x, cells)) in runs.iter().enumerate() {
-            let first = self.row_bucket(row, c[0].wrapping_add(x));
-            let last = first + cells - 1;
-            // A run past the table's end goes on from its start.
-            let end = grid.start[last.min(self.table - 1) + 1] as usize;
-            let wrapped = last.saturating_sub(self.table - 1);
-            let spans = [
-                (grid.start[first] as usize, end),
-                (0, grid.start[wrapped] as usize),
-            ];
-            for (mut at, end) in spans.into_iter().take(1 + (wrapped > 0) as usize) {
-                // Four at a time (the last four masked past the end: `PADDING`), without a
-                // branch per candidate: each is written, and counted when near.
-                while at < end {
-                    let dx = Vec4::from_slice(&grid.xs[at..at + 4]) - px;
-                    let dy = Vec4::from_slice(&grid.ys[at..at + 4]) - py;
-                    let dz = Vec4::from_slice(&grid.zs[at..at + 4]) - pz;
-                    let lanes = (1usize << (end - at).min(4)) - 1;
-                    let mut within = (dx * dx + dy * dy + dz * dz).cmplt(reach_squared).bitmask()
-                        as usize
-                        & lanes;
-                    if k == 0 {
-                        // In its own cell, only those after it.
-                        for lane in 0..4 {
-                            within &= !(((grid.items[at + lane] as usize <= i) as usize) << lane);
-                        }
-                    }
+        for &(start, end, own) in &spans {
+            let mut at = start;
+            // Four at a time (the last four masked past the end: `PADDING`), without a branch
+            // per candidate: each is written, and counted when near.
+            while at < end {
+                let dx = Vec4::from_slice(&grid.xs[at..at + 4]) - px;
+                let dy = Vec4::from_slice(&grid.ys[at..at + 4]) - py;
+                let dz = Vec4::from_slice(&grid.zs[at..at + 4]) - pz;
+                let lanes = (1usize << (end - at).min(4)) - 1;
+                let mut within =
+                    (dx * dx + dy * dy + dz * dz).cmplt(reach).bitmask() as usize & lanes;
+                if own {
+                    // In its own cell, only those after it.
                     for lane in 0..4 {
-                        near[count.min(NEAR - 1)] = grid.items[at + lane];
-                        count += within >> lane & 1;
+                        within &= !(((grid.items[at + lane] as usize <= i) as usize) << lane);
                     }
-                    at += 4;
                 }
+                for lane in 0..4 {
+                    near[count.min(NEAR - 1)] = grid.items[at + lane];
+                    count += within >> lane & 1;
+                }
+                at += 4;
             }
         }
-        if count >= NEAR {
-            // More near than gathered (a clump): again, one by one.
-            return self.forward_pairs_one_by_one(i, p, grid, out);
+        if count < NEAR {
+            let pairs = near[..count]
+                .iter()
+                .filter(|&&j| !self.joined(i, j as usize));
+            out.extend(pairs.map(|&j| (i as u32, j)));
+            return;
         }
-        for &j in &near[..count] {
-            if !self.joined(i, j as usize) {
-                out.push((i as u32, j));
-            }
-        }
-    }
-
-    /// [`Self::forward_pairs`] without a bound on the particles near (each candidate tested
-    /// and kept on its own).
-    #[cold]
-    fn forward_pairs_one_by_one(&self, i: usize, p: Vec4, grid: &Grid, out: &mut Vec<(u32, u32)>) {
-        let reach_squared = self.list_reach() * self.list_reach();
-        let (c, _) = Self::cell_of(p, grid.inv_cell);
-        let offsets = (0..=1)
-            .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| (dz, dy, dx))));
-        for (dz, dy, dx) in offsets.filter(|&o| o >= (0, 0, 0)) {
-            let cell = [
-                c[0].wrapping_add(dx),
-                c[1].wrapping_add(dy),
-                c[2].wrapping_add(dz),
-            ];
-            let b = self.row_bucket(Self::row_hash(cell[1], cell[2]), cell[0]);
-            for at in grid.start[b] as usize..grid.start[b + 1] as usize {
+        // More near than gathered (a clump): again, each candidate tested and kept on its own.
+        for &(start, end, own) in &spans {
+            for at in start..end {
                 let j = grid.items[at] as usize;
                 let d = Vec4::new(grid.xs[at], grid.ys[at], grid.zs[at], 0.0)
                     - p.truncate().extend(0.0);
-                let own = (dz, dy, dx) == (0, 0, 0);
                 if d.length_squared() < reach_squared && (!own || j > i) && !self.joined(i, j) {
                     out.push((i as u32, j as u32));
                 }
             }
         }
+    }
+
+    /// The ranges of `grid.items` [`Self::forward_pairs`] searches around `p`, and whether each
+    /// is `p`'s own cell: its own cell, the next along x, then the four rows above (y + 1, and
+    /// z + 1 at y − 1, y, y + 1) from x − 1 to x + 1; a run past the table's end goes on from
+    /// its start (its second range; empty when it does not).
+    fn forward_spans(&self, p: Vec4, grid: &Grid) -> [(usize, usize, bool); 12] {
+        let (c, _) = Self::cell_of(p, grid.inv_cell);
+        let row = |dy: i32, dz: i32| Self::row_hash(c[1].wrapping_add(dy), c[2].wrapping_add(dz));
+        // (row, first cell, cells)
+        let runs = [
+            (row(0, 0), 0, 1),
+            (row(0, 0), 1, 1),
+            (row(1, 0), -1, 3),
+            (row(-1, 1), -1, 3),
+            (row(0, 1), -1, 3),
+            (row(1, 1), -1, 3),
+        ];
+        let mut spans = [(0, 0, false); 12];
+        for (k, &(row, x, cells)) in runs.iter().enumerate() {
+            let first = self.row_bucket(row, c[0].wrapping_add(x));
+            let last = first + cells - 1;
+            let wrapped = last.saturating_sub(self.table - 1);
+            let end = grid.start[last.min(self.table - 1) + 1] as usize;
+            spans[2 * k] = (grid.start[first] as usize, end, k == 0);
+            spans[2 * k + 1] = (
+                0,
+                grid.start[wrapped] as usize * (wrapped > 0) as usize,
+                false,
+            );
+        }
+        spans
     }
 }

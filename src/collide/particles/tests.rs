@@ -379,13 +379,33 @@ fn folded_sheet(
     (pc, q)
 }
 
+/// 300 particles in a 3 cm cube (every list too long to keep, and more pairs a particle than
+/// [`NEAR`]) and 24 outside it, each a little less than a list's reach from the cube's nearest
+/// face: their short lists hold the clump's particles that found them.
+fn clump_and_outliers(radius: f32) -> (ParticleCollisions, Vec<Vec4>) {
+    let centre = Vec4::new(0.05, 0.0, -0.3, 0.0);
+    let (mut pc, mut q) = cloud(300, 0.03, centre, radius);
+    let (_, spread) = cloud(24, 0.03, Vec4::ZERO, radius);
+    let out = 0.015 + 0.9 * pc.list_reach();
+    for (k, s) in spread.iter().enumerate() {
+        let mut p = *s;
+        p[k % 3] = if k % 2 == 0 { out } else { -out };
+        q.push(centre + p);
+    }
+    pc.garment = (0..q.len() as u32).collect();
+    pc.cell = vec![[0; 3]; q.len()];
+    pc.table = (2 * q.len()).next_power_of_two();
+    (pc, q)
+}
+
 #[test]
 fn lists_made_from_pairs_found_once_are_the_brute_force_lists() {
     // Each particle finds its pairs in the cells after its own (each pair once), and the pairs
     // fill both lists: the same lists as the brute force over every pair, on a cloud (lists
     // past their capacity included), on a sheet folded onto itself (its lattice neighbours left
     // out, the other layer kept), on a clump where a particle has more pairs than it gathers
-    // at once, and with a table of 16 buckets, where rows of cells wrap past its end and share
+    // at once (the particles just outside it list those it finds one by one), and with a
+    // table of 16 buckets, where rows of cells wrap past its end and share
     // buckets with each other.
     let radius = 0.01;
     let spacing = 2.0 * radius;
@@ -393,7 +413,7 @@ fn lists_made_from_pairs_found_once_are_the_brute_force_lists() {
     let cases = [
         cloud(400, 0.2, Vec4::new(0.31, -0.7, 1.3, 0.0), radius),
         cloud(120, 0.05, Vec4::new(-0.2, 0.1, 0.0, 0.0), radius),
-        cloud(300, 0.03, Vec4::new(0.05, 0.0, -0.3, 0.0), radius),
+        clump_and_outliers(radius),
         folded(2048),
         folded(16),
         {
