@@ -6,7 +6,7 @@ use super::integrate::Verlet;
 use super::team::{Member, Shared};
 use super::{constraint, solver, Model};
 use crate::collide::particles::{
-    lists_from_pairs, Finding, Grid, List, ListState, Near, ParticleCollisions,
+    lists_from_pairs_from, Finding, Grid, List, ListState, Near, ParticleCollisions,
 };
 use crate::collide::{Collider, ShellCollider};
 use glam::Vec4;
@@ -80,8 +80,9 @@ pub(super) struct Stages<'a> {
     /// Each particle's neighbour list, and where it was when the lists were made.
     pub(super) lists: Shared<List>,
     pub(super) anchors: Shared<Vec4>,
-    /// The pairs a remake finds, each once, to make the lists from.
-    pub(super) pairs: &'a std::sync::Mutex<Vec<(u32, u32)>>,
+    /// The pairs a remake finds, each once, to make the lists from (every thread adds those
+    /// it found, then reads them all; the leader empties it at the stage's end).
+    pub(super) pairs: &'a RwLock<Vec<(u32, u32)>>,
     /// How the substeps have been finding the pairs (written by the leader after the stage).
     pub(super) list_state: &'a std::sync::Mutex<ListState>,
     /// Whether they may keep lists (else every substep finds its pairs directly), and how many
@@ -196,24 +197,27 @@ impl Stages<'_> {
             movers: &mover_list,
         };
         let pushes = self.pushes.expect("particle collisions have pushes");
-        for i in model.particles_of(m.index, m.count) {
-            unsafe {
-                let list = lists.get(i);
-                let near = match finding {
-                    Finding::Direct => Near::Grid,
-                    Finding::Patch if movers.touched[i].swap(false, Relaxed) || moving(i) => {
-                        Near::Patched(&list, anchors.get(i), patch)
-                    }
-                    _ => Near::List(&list, anchors.get(i)),
-                };
-                pushes.set(i, pc.push_out(i, near, (|k| x[k], q), &model.inv_mass, &g));
-            }
-        }
+        // Shared by what it costs (`Member::balanced`): a particle's pushes cost as many
+        // neighbours as it has, and the folds are where they are.
+        m.balanced(&model.work_order, |i| unsafe {
+            let list = lists.get(i);
+            let near = match finding {
+                Finding::Direct => Near::Grid,
+                Finding::Patch if movers.touched[i].swap(false, Relaxed) || moving(i) => {
+                    Near::Patched(&list, anchors.get(i), patch)
+                }
+                _ => Near::List(&list, anchors.get(i)),
+            };
+            pushes.set(i, pc.push_out(i, near, (|k| x[k], q), &model.inv_mass, &g));
+        });
         drop((g, mover_list));
         m.sync();
         // Every thread has read the state and the movers' count; none reads them again before
         // the next substep's stage, after `finish`'s sync.
         if m.leads() && self.particle_lists {
+            if finding == Finding::Remake {
+                self.pairs.write().expect("not poisoned").clear();
+            }
             *self.list_state.lock().expect("not poisoned") = state.after(finding, stale);
             movers.count.store(0, Relaxed);
             if matches!(finding, Finding::Reuse | Finding::Patch) {
@@ -223,32 +227,32 @@ impl Stages<'_> {
     }
 
     /// Makes the neighbour lists again at `q` from the lists' grid, just built there: every
-    /// thread anchors its particles and finds their pairs, each pair once (a pinned particle
-    /// too: it is never pushed, but others' lists hold it); then the leader fills both
-    /// particles' lists from the pairs (few: most lists are empty).
+    /// thread anchors particles and finds their pairs, each pair once (a pinned particle too:
+    /// it is never pushed, but others' lists hold it), shared by what it costs
+    /// ([`Member::balanced`]: a fold's particles have more candidates than a flat stretch's);
+    /// then every thread fills its own stretch of the lists from all the pairs.
     fn remake_lists(&self, m: &Member, pc: &ParticleCollisions, q: &impl Fn(usize) -> Vec4) {
         let g = self.grid.read().expect("not poisoned");
         let mut found = Vec::new();
-        for i in self.model.particles_of(m.index, m.count) {
-            // SAFETY: each particle's anchor and list are written by its own thread here, and
-            // read by others only after the syncs below.
-            unsafe {
-                self.anchors.set(i, q(i));
-                self.lists.set(i, List::EMPTY);
-            }
+        m.balanced(&self.model.work_order, |i| {
+            // SAFETY: each particle's anchor is written by one thread here, and read by others
+            // only after the syncs below.
+            unsafe { self.anchors.set(i, q(i)) };
             pc.forward_pairs(i, q(i), &g, &mut found);
-        }
+        });
         drop(g);
         if !found.is_empty() {
-            self.pairs.lock().expect("not poisoned").extend(found);
+            self.pairs.write().expect("not poisoned").extend(found);
         }
         m.sync();
-        if m.leads() {
-            let mut pairs = self.pairs.lock().expect("not poisoned");
-            // SAFETY: between the two syncs only the leader touches the lists.
-            lists_from_pairs(&pairs, unsafe { self.lists.write_all() });
-            pairs.clear();
-        }
+        let pairs = self.pairs.read().expect("not poisoned");
+        let mine = m.share(0..self.lists.len());
+        // SAFETY: each thread writes only its own stretch of the lists, which no thread reads
+        // before the sync below.
+        let lists = unsafe { self.lists.write_range(mine.clone()) };
+        lists.fill(List::EMPTY);
+        lists_from_pairs_from(&pairs, mine.start, lists);
+        drop(pairs);
         m.sync();
     }
 

@@ -608,6 +608,16 @@ impl<T: Copy> Shared<T> {
     pub unsafe fn write_all(&self) -> &mut [T] {
         std::slice::from_raw_parts_mut(self.ptr, self.len)
     }
+
+    /// Elements `range`, for one thread to write.
+    ///
+    /// # Safety
+    /// No other thread reads or writes any of them while the reference lives.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn write_range(&self, range: Range<usize>) -> &mut [T] {
+        assert!(range.start <= range.end && range.end <= self.len);
+        std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.end - range.start)
+    }
 }
 
 #[cfg(test)]

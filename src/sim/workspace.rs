@@ -35,8 +35,8 @@ pub(super) struct Workspace {
     lists: Vec<List>,
     anchors: Vec<Vec4>,
     /// The pairs within a list's reach a remake found, each once, that the lists are made from
-    /// (every thread adds its particles' pairs).
-    pairs: std::sync::Mutex<Vec<(u32, u32)>>,
+    /// (every thread adds those it found).
+    pairs: RwLock<Vec<(u32, u32)>>,
     /// The particles that moved too far for the lists (the movers): a flag per particle, their
     /// count (the lists are stale when it is not zero), the particles they touch, and their list ([`crate::collide::particles::Patch`]).
     moving: Vec<u8>,
@@ -111,11 +111,7 @@ impl Workspace {
             grid: RwLock::new(particles.map(|p| p.grid()).unwrap_or_default()),
             lists: vec![List::EMPTY; if particles.is_some() { n } else { 0 }],
             anchors: vec![Vec4::INFINITY; if particles.is_some() { n } else { 0 }],
-            pairs: std::sync::Mutex::new(Vec::with_capacity(if particles.is_some() {
-                n
-            } else {
-                0
-            })),
+            pairs: RwLock::new(Vec::with_capacity(if particles.is_some() { n } else { 0 })),
             moving: vec![0; if particles.is_some() { n } else { 0 }],
             movers: AtomicU32::new(0),
             touched: (0..if particles.is_some() { n } else { 0 })

@@ -154,13 +154,29 @@ impl List {
 /// list's reach ([`ParticleCollisions::forward_pairs`] of every particle): each pair adds each
 /// of its two particles to the other's list.
 pub fn lists_from_pairs(pairs: &[(u32, u32)], lists: &mut [List]) {
+    lists_from_pairs_from(pairs, 0, lists);
+}
+
+/// [`lists_from_pairs`] for the particles `first..first + lists.len()` only (`lists` holds
+/// theirs): every thread of a team fills its own stretch from all the pairs. A list's
+/// particles do not depend on the order of the pairs (a list is kept sorted, each particle
+/// once, or is one of too many to keep), so the stretches together are the lists one thread
+/// would make.
+pub fn lists_from_pairs_from(pairs: &[(u32, u32)], first: usize, lists: &mut [List]) {
+    let len = lists.len();
+    let mine = |k: u32| (k as usize).checked_sub(first).filter(|&k| k < len);
     for &(i, j) in pairs {
-        lists[i as usize].add(j);
-        lists[j as usize].add(i);
+        if let Some(k) = mine(i) {
+            lists[k].add(j);
+        }
+        if let Some(k) = mine(j) {
+            lists[k].add(i);
+        }
     }
     for &(i, j) in pairs {
-        lists[i as usize].settle();
-        lists[j as usize].settle();
+        for k in [mine(i), mine(j)].into_iter().flatten() {
+            lists[k].settle();
+        }
     }
 }
 

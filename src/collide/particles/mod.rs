@@ -42,7 +42,8 @@ mod tests;
 
 pub use grid::Grid;
 pub use lists::{
-    lists_from_pairs, Finding, List, ListState, DIRECT_RUN, LIST_CAPACITY, LIST_MARGIN, REBUILD_AT,
+    lists_from_pairs, lists_from_pairs_from, Finding, List, ListState, DIRECT_RUN, LIST_CAPACITY,
+    LIST_MARGIN, REBUILD_AT,
 };
 pub use patch::{Patch, PATCH_MOVERS, PATCH_SHARE};
 

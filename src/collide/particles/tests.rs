@@ -455,3 +455,53 @@ fn a_list_takes_each_particle_once_up_to_its_capacity() {
     full.settle();
     assert_eq!(full.entries(), None);
 }
+
+/// Lists filled stretch by stretch (as every thread of a team fills its own), from the pairs in
+/// another order, are the lists filled at once: full lists, lists of too many, empty lists.
+#[test]
+fn lists_filled_in_stretches_from_pairs_in_any_order_are_the_lists_filled_at_once() {
+    let (pc, mut at) = cloud(600, 0.12, Vec4::new(0.3, -1.2, 2.0, 0.0), 0.01);
+    // The last 40 far from the rest and from each other: lists that stay empty.
+    for (k, p) in at[560..].iter_mut().enumerate() {
+        *p += Vec4::new(1.0 + k as f32, 0.0, 0.0, 0.0);
+    }
+    let mut grid = pc.grid();
+    pc.build(|i| at[i], &mut grid, true);
+    let mut pairs = Vec::new();
+    for (i, p) in at.iter().enumerate() {
+        pc.forward_pairs(i, *p, &grid, &mut pairs);
+    }
+    let mut whole = vec![List::EMPTY; at.len()];
+    lists_from_pairs(&pairs, &mut whole);
+    let entries = |lists: &[List]| {
+        lists
+            .iter()
+            .map(|l| l.entries().map(<[u32]>::to_vec))
+            .collect::<Vec<_>>()
+    };
+    let expected = entries(&whole);
+    assert!(expected.iter().any(Option::is_none), "a list of too many");
+    assert!(expected
+        .iter()
+        .any(|e| e.as_ref().is_some_and(|e| e.len() > 2)));
+    assert!(expected
+        .iter()
+        .any(|e| e.as_ref().is_some_and(Vec::is_empty)));
+    // The pairs as two threads would leave them: the second's first, each reversed.
+    let half = pairs.len() / 2;
+    let shuffled: Vec<(u32, u32)> = (pairs[half..].iter().rev())
+        .chain(pairs[..half].iter().rev())
+        .copied()
+        .collect();
+    for cuts in [
+        vec![0, at.len()],
+        vec![0, 211, at.len()],
+        vec![0, 1, 300, 599, at.len()],
+    ] {
+        let mut lists = vec![List::EMPTY; at.len()];
+        for w in cuts.windows(2) {
+            lists_from_pairs_from(&shuffled, w[0], &mut lists[w[0]..w[1]]);
+        }
+        assert_eq!(entries(&lists), expected, "stretches {cuts:?}");
+    }
+}
