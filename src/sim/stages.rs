@@ -200,13 +200,13 @@ impl Stages<'_> {
         // Shared by what it costs (`Member::balanced`): a particle's pushes cost as many
         // neighbours as it has, and the folds are where they are.
         m.balanced(&model.work_order, |i| unsafe {
-            let list = lists.get(i);
+            let list = lists.get_ref(i);
             let near = match finding {
                 Finding::Direct => Near::Grid,
                 Finding::Patch if movers.touched[i].swap(false, Relaxed) || moving(i) => {
-                    Near::Patched(&list, anchors.get(i), patch)
+                    Near::Patched(list, anchors.get(i), patch)
                 }
-                _ => Near::List(&list, anchors.get(i)),
+                _ => Near::List(list, anchors.get(i)),
             };
             pushes.set(i, pc.push_out(i, near, (|k| x[k], q), &model.inv_mass, &g));
         });

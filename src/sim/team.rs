@@ -571,6 +571,16 @@ impl<T: Copy> Shared<T> {
         *self.ptr.add(i)
     }
 
+    /// Element `i`, read in place (for elements too large to copy for a look).
+    ///
+    /// # Safety
+    /// No other thread writes `i` while the reference lives.
+    #[inline(always)]
+    pub unsafe fn get_ref(&self, i: usize) -> &T {
+        debug_assert!(i < self.len);
+        &*self.ptr.add(i)
+    }
+
     /// Writes element `i`.
     ///
     /// # Safety
