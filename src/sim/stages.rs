@@ -83,6 +83,8 @@ pub(super) struct Stages<'a> {
     /// The pairs a remake finds, each once, to make the lists from (every thread adds those
     /// it found, then reads them all; the leader empties it at the stage's end).
     pub(super) pairs: &'a RwLock<Vec<(u32, u32)>>,
+    /// The slots of the lists' grid, 0..particles (the order a remake shares out).
+    pub(super) slots: &'a [u32],
     /// How the substeps have been finding the pairs (written by the leader after the stage).
     pub(super) list_state: &'a std::sync::Mutex<ListState>,
     /// Whether they may keep lists (else every substep finds its pairs directly), and how many
@@ -228,17 +230,18 @@ impl Stages<'_> {
 
     /// Makes the neighbour lists again at `q` from the lists' grid, just built there: every
     /// thread anchors particles and finds their pairs, each pair once (a pinned particle too:
-    /// it is never pushed, but others' lists hold it), shared by what it costs
-    /// ([`Member::balanced`]: a fold's particles have more candidates than a flat stretch's);
-    /// then every thread fills its own stretch of the lists from all the pairs.
+    /// it is never pushed, but others' lists hold it), slot by slot of the grid, shared by what
+    /// it costs ([`Member::balanced`]: a fold's particles have more candidates than a flat
+    /// stretch's); then every thread fills its own stretch of the lists from all the pairs.
     fn remake_lists(&self, m: &Member, pc: &ParticleCollisions, q: &impl Fn(usize) -> Vec4) {
         let g = self.grid.read().expect("not poisoned");
         let mut found = Vec::new();
-        m.balanced(&self.model.work_order, |i| {
+        m.balanced(self.slots, |k| {
+            let i = g.items[k] as usize;
             // SAFETY: each particle's anchor is written by one thread here, and read by others
             // only after the syncs below.
             unsafe { self.anchors.set(i, q(i)) };
-            pc.forward_pairs(i, q(i), &g, &mut found);
+            pc.forward_pairs(k, &g, &mut found);
         });
         drop(g);
         if !found.is_empty() {

@@ -37,6 +37,8 @@ pub(super) struct Workspace {
     /// The pairs within a list's reach a remake found, each once, that the lists are made from
     /// (every thread adds those it found).
     pairs: RwLock<Vec<(u32, u32)>>,
+    /// The slots of the lists' grid, 0..particles: the order a remake shares out.
+    slots: Vec<u32>,
     /// The particles that moved too far for the lists (the movers): a flag per particle, their
     /// count (the lists are stale when it is not zero), the particles they touch, and their list ([`crate::collide::particles::Patch`]).
     moving: Vec<u8>,
@@ -112,6 +114,7 @@ impl Workspace {
             lists: vec![List::EMPTY; if particles.is_some() { n } else { 0 }],
             anchors: vec![Vec4::INFINITY; if particles.is_some() { n } else { 0 }],
             pairs: RwLock::new(Vec::with_capacity(if particles.is_some() { n } else { 0 })),
+            slots: (0..if particles.is_some() { n as u32 } else { 0 }).collect(),
             moving: vec![0; if particles.is_some() { n } else { 0 }],
             movers: AtomicU32::new(0),
             touched: (0..if particles.is_some() { n } else { 0 })
@@ -203,6 +206,7 @@ impl Workspace {
             lists: Shared::new(&mut self.lists),
             anchors: Shared::new(&mut self.anchors),
             pairs: &self.pairs,
+            slots: &self.slots,
             list_state: &self.list_state,
             particle_lists: self.particle_lists_enabled,
             lists_reused: &self.lists_reused,

@@ -8,10 +8,11 @@
 //! - **Rows** (the neighbour lists, cells a list's reach wide): a cell's bucket is the hash of
 //!   its row (its y and z) plus its x, so the three cells of a row along x are three buckets in
 //!   a row, one run of the sorted particles. The 27 cells around a point's own cell, which hold
-//!   every particle within a reach of it, are nine runs; its own cell and the 13 after it in
-//!   (z, y, x) order, which find each pair once, are six ([`ParticleCollisions::
+//!   every particle within a reach of it, are nine runs; the particles after a particle in its
+//!   own bucket and the 13 cells after its own in (z, y, x) order, which find each pair once,
+//!   are five, searched slot by slot of the sorted particles ([`ParticleCollisions::
 //!   forward_pairs`]). A list's particle looks at a third of the candidates the corners' block,
-//!   four reaches a side, gave it (P: 23 against 74), in six runs against eight buckets.
+//!   four reaches a side, gave it (P: 23 against 74), in five runs against eight buckets.
 
 use super::ParticleCollisions;
 use glam::Vec4;

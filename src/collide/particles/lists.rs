@@ -181,19 +181,22 @@ pub fn lists_from_pairs_from(pairs: &[(u32, u32)], first: usize, lists: &mut [Li
 }
 
 impl ParticleCollisions {
-    /// Adds to `out` the pairs (i, j) of particle `i` at `p` with the particles within a list's
-    /// reach of it in `grid` (the lists' grid, built at the same positions) but its lattice
-    /// neighbours, each pair once over all particles: j in one of the 13 cells after i's own
-    /// in (z, y, x) order, or later than i in its own cell (six runs of the rows: `grid.rs`).
+    /// Adds to `out` the pairs (i, j) of the particle i in slot `k` of `grid` (the lists'
+    /// grid) with the particles within a list's reach of it where the grid was built, but its
+    /// lattice neighbours, each pair once over all slots: j in one of the 13 cells after i's own
+    /// in (z, y, x) order, or after i in its own bucket (which holds its cell's particles in
+    /// ascending order): five runs of the rows (`grid.rs`), the first from the slot after k on.
     /// Two cells may share a bucket: a pair may then come twice ([`List::settle`] keeps one).
-    pub fn forward_pairs(&self, i: usize, p: Vec4, grid: &Grid, out: &mut Vec<(u32, u32)>) {
-        let spans = self.forward_spans(p, grid);
+    pub fn forward_pairs(&self, k: usize, grid: &Grid, out: &mut Vec<(u32, u32)>) {
+        let i = grid.items[k] as usize;
+        let p = Vec4::new(grid.xs[k], grid.ys[k], grid.zs[k], 0.0);
+        let spans = self.forward_spans(k, p, grid);
         let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
         let reach_squared = self.list_reach() * self.list_reach();
         let reach = Vec4::splat(reach_squared);
         let mut near = [0u32; NEAR];
         let mut count = 0usize;
-        for &(start, end, own) in &spans {
+        for &(start, end) in &spans {
             let mut at = start;
             // Four at a time (the last four masked past the end: `PADDING`), without a branch
             // per candidate: each is written, and counted when near.
@@ -202,14 +205,7 @@ impl ParticleCollisions {
                 let dy = Vec4::from_slice(&grid.ys[at..at + 4]) - py;
                 let dz = Vec4::from_slice(&grid.zs[at..at + 4]) - pz;
                 let lanes = (1usize << (end - at).min(4)) - 1;
-                let mut within =
-                    (dx * dx + dy * dy + dz * dz).cmplt(reach).bitmask() as usize & lanes;
-                if own {
-                    // In its own cell, only those after it.
-                    for lane in 0..4 {
-                        within &= !(((grid.items[at + lane] as usize <= i) as usize) << lane);
-                    }
-                }
+                let within = (dx * dx + dy * dy + dz * dz).cmplt(reach).bitmask() as usize & lanes;
                 for lane in 0..4 {
                     near[count.min(NEAR - 1)] = grid.items[at + lane];
                     count += within >> lane & 1;
@@ -225,46 +221,44 @@ impl ParticleCollisions {
             return;
         }
         // More near than gathered (a clump): again, each candidate tested and kept on its own.
-        for &(start, end, own) in &spans {
+        for &(start, end) in &spans {
             for at in start..end {
                 let j = grid.items[at] as usize;
-                let d = Vec4::new(grid.xs[at], grid.ys[at], grid.zs[at], 0.0)
-                    - p.truncate().extend(0.0);
-                if d.length_squared() < reach_squared && (!own || j > i) && !self.joined(i, j) {
+                let d = Vec4::new(grid.xs[at], grid.ys[at], grid.zs[at], 0.0) - p;
+                if d.length_squared() < reach_squared && !self.joined(i, j) {
                     out.push((i as u32, j as u32));
                 }
             }
         }
     }
 
-    /// The ranges of `grid.items` [`Self::forward_pairs`] searches around `p`, and whether each
-    /// is `p`'s own cell: its own cell, the next along x, then the four rows above (y + 1, and
-    /// z + 1 at y − 1, y, y + 1) from x − 1 to x + 1; a run past the table's end goes on from
-    /// its start (its second range; empty when it does not).
-    fn forward_spans(&self, p: Vec4, grid: &Grid) -> [(usize, usize, bool); 12] {
+    /// The ranges of `grid.items` [`Self::forward_pairs`] searches for the particle in slot
+    /// `k`, at `p`: its own bucket after it and the next cell along x (one run), then the four
+    /// rows above (y + 1, and z + 1 at y − 1, y, y + 1) from x − 1 to x + 1; a run past the
+    /// table's end goes on from its start (its second range; empty when it does not).
+    fn forward_spans(&self, k: usize, p: Vec4, grid: &Grid) -> [(usize, usize); 10] {
         let (c, _) = Self::cell_of(p, grid.inv_cell);
         let row = |dy: i32, dz: i32| Self::row_hash(c[1].wrapping_add(dy), c[2].wrapping_add(dz));
         // (row, first cell, cells)
         let runs = [
-            (row(0, 0), 0, 1),
-            (row(0, 0), 1, 1),
+            (row(0, 0), 0, 2),
             (row(1, 0), -1, 3),
             (row(-1, 1), -1, 3),
             (row(0, 1), -1, 3),
             (row(1, 1), -1, 3),
         ];
-        let mut spans = [(0, 0, false); 12];
-        for (k, &(row, x, cells)) in runs.iter().enumerate() {
+        let mut spans = [(0, 0); 10];
+        for (r, &(row, x, cells)) in runs.iter().enumerate() {
             let first = self.row_bucket(row, c[0].wrapping_add(x));
             let last = first + cells - 1;
             let wrapped = last.saturating_sub(self.table - 1);
             let end = grid.start[last.min(self.table - 1) + 1] as usize;
-            spans[2 * k] = (grid.start[first] as usize, end, k == 0);
-            spans[2 * k + 1] = (
-                0,
-                grid.start[wrapped] as usize * (wrapped > 0) as usize,
-                false,
-            );
+            let start = match r {
+                0 => k + 1,
+                _ => grid.start[first] as usize,
+            };
+            spans[2 * r] = (start, end);
+            spans[2 * r + 1] = (0, grid.start[wrapped] as usize * (wrapped > 0) as usize);
         }
         spans
     }

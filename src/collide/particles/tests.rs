@@ -26,8 +26,8 @@ fn pushes(x: [Vec4; 2], q: [Vec4; 2]) -> [Vec4; 2] {
 /// pairs found in `grid` (built at `at` for the lists), then both lists of each pair filled.
 fn lists_at(pc: &ParticleCollisions, at: &[Vec4], grid: &Grid) -> Vec<List> {
     let mut pairs = Vec::new();
-    for (i, p) in at.iter().enumerate() {
-        pc.forward_pairs(i, *p, grid, &mut pairs);
+    for k in 0..at.len() {
+        pc.forward_pairs(k, grid, &mut pairs);
     }
     let mut lists = vec![List::EMPTY; at.len()];
     lists_from_pairs(&pairs, &mut lists);
@@ -468,8 +468,8 @@ fn lists_filled_in_stretches_from_pairs_in_any_order_are_the_lists_filled_at_onc
     let mut grid = pc.grid();
     pc.build(|i| at[i], &mut grid, true);
     let mut pairs = Vec::new();
-    for (i, p) in at.iter().enumerate() {
-        pc.forward_pairs(i, *p, &grid, &mut pairs);
+    for k in 0..at.len() {
+        pc.forward_pairs(k, &grid, &mut pairs);
     }
     let mut whole = vec![List::EMPTY; at.len()];
     lists_from_pairs(&pairs, &mut whole);
