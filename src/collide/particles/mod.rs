@@ -108,14 +108,15 @@ impl ParticleCollisions {
     /// Memory the CPU backend's particle collisions take for `particles` particles [bytes]:
     /// their static data (garment and lattice cell), the grid (items, buckets, positions and
     /// the table's starts and cursors), the neighbour lists with their anchors and the pairs
-    /// they are made from, the pushes, and a patched substep's movers (a flag each for moving
+    /// they are made from (and the order they are found in), the pushes, and a patched substep's movers (a flag each for moving
     /// and touched, and their list).
     pub fn memory_bytes(particles: usize) -> usize {
         let table = (2 * particles).next_power_of_two().max(16);
         let per_particle = 4 + 12 + (4 + 4 + 12) + (std::mem::size_of::<List>() + 16) + 16 + 2;
         let padding = grid::PADDING * (4 + 12);
-        // The pairs a remake finds: room for one a particle (P's lists hold 0.1–1 each).
-        let pairs = particles * 8;
+        // The pairs a remake finds: room for one a particle (P's lists hold 0.1–1 each); and
+        // the grid's slots, the order a remake shares out.
+        let pairs = particles * (8 + 4);
         particles * per_particle + padding + pairs + (2 * table + 1) * 4 + PATCH_MOVERS as usize * 4
     }
 

@@ -249,8 +249,8 @@ fn an_overlap_without_a_crossing_is_pushed_apart_along_the_start_separation() {
 
 #[test]
 fn memory_bytes_counts_the_buffers_a_simulation_allocates() {
-    // The static data and a grid as built, per particle a list, an anchor, a push, two flags
-    // and room for a pair, and the movers' list (as `sim::Workspace` allocates them).
+    // The static data and a grid as built, per particle a list, an anchor, a push, two flags,
+    // room for a pair and a grid slot, and the movers' list (as `sim::Workspace` allocates them).
     for n in [1, 300, 4148] {
         let (pc, _) = cloud(n, 1.0, Vec4::ZERO, 0.01);
         let grid = pc.grid();
@@ -260,6 +260,7 @@ fn memory_bytes_counts_the_buffers_a_simulation_allocates() {
             + (grid.xs.len() + grid.ys.len() + grid.zs.len()) * 4
             + n * (std::mem::size_of::<List>() + 16 + 16)
             + n * std::mem::size_of::<(u32, u32)>()
+            + n * 4
             + n * 2
             + PATCH_MOVERS as usize * 4;
         assert_eq!(
