@@ -381,6 +381,33 @@ fn bad_scenes_are_refused_naming_the_field() {
             keeps: &[("file.txt", Some("a file"))],
             leaves_no: &[],
         },
+        Case {
+            // Blender's FBX of CesiumMan (centimetres, read at `scale` 0.01) and the cape modelled
+            // on him in metres (`garments/cesium_cape.obj`, an OBJ as Blender writes it): the
+            // cape lands 4.6 mm across, one particle at its spacing. Refused, not baked.
+            name: "a garment modelled on a character, in other units than the character's file",
+            files: &[(
+                "scene.json",
+                concat!(
+                    r#"{ "frames": 2, "backend": "cpu", "characters": [{ "name": "man", "clip": "0", "scale": 0.01, "file": ""#,
+                    env!("CARGO_MANIFEST_DIR"),
+                    r#"/tests/assets/CesiumMan/CesiumMan.fbx" }], "garments": [{ "name": "cape", "kind": "mesh", "on": "man", "spacing": 0.02, "mesh": ""#,
+                    env!("CARGO_MANIFEST_DIR"),
+                    r#"/garments/cesium_cape.obj" }] }"#
+                ),
+            )],
+            args: bake,
+            code: 2,
+            says: &[
+                "garments[0].mesh",
+                "cesium_cape.obj",
+                "4.600e-3 m across",
+                "no cloth",
+                "other units",
+            ],
+            keeps: &[],
+            leaves_no: &["out"],
+        },
     ];
     for case in &cases {
         check(case);
@@ -411,6 +438,26 @@ fn odd_but_valid_scenes_bake() {
             args: &["bake", "scene.json", "--out", "out"],
             code: 0,
             says: &[],
+            keeps: &[("out/report.json", None)],
+            leaves_no: &[],
+        },
+        Case {
+            // As the refused case in `bad_scenes_are_refused_naming_the_field`, at the default
+            // spacing (31 cells across the 4.6 mm cape): baked, and warned of.
+            name: "a garment modelled on a character, in other units, at the default spacing",
+            files: &[(
+                "scene.json",
+                concat!(
+                    r#"{ "frames": 1, "backend": "cpu", "characters": [{ "name": "man", "clip": "0", "scale": 0.01, "file": ""#,
+                    env!("CARGO_MANIFEST_DIR"),
+                    r#"/tests/assets/CesiumMan/CesiumMan.fbx" }], "garments": [{ "name": "cape", "kind": "mesh", "on": "man", "mesh": ""#,
+                    env!("CARGO_MANIFEST_DIR"),
+                    r#"/garments/cesium_cape.obj" }] }"#
+                ),
+            )],
+            args: &["bake", "scene.json", "--out", "out"],
+            code: 0,
+            says: &["garment cape (on man): 0.005 m across where man is 1.458 m tall", "other units"],
             keeps: &[("out/report.json", None)],
             leaves_no: &[],
         },

@@ -41,6 +41,19 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
     }
     let mut warnings =
         crate::garment::advice::folding_warnings(&garments, scene.particle_collisions);
+    let bodies: Vec<_> = (character_meshes.iter())
+        .filter_map(|m| {
+            Some((
+                m.name.clone(),
+                crate::garment::voxel::bounds(m.frames.first()?),
+            ))
+        })
+        .collect();
+    warnings.extend(crate::garment::advice::on_body_size_warnings(
+        &scene.garments,
+        &garments,
+        &bodies,
+    ));
     warnings.extend(crate::collide::crossings::modelled_warnings(&garments));
     warnings.extend(crate::collide::crossings::between_warnings(&garments));
     if !sim.drivers.attachments.unbound().is_empty() {

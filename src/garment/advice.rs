@@ -28,6 +28,40 @@ pub fn folding_warnings(garments: &[Garment], particle_collisions: bool) -> Vec<
         .collect()
 }
 
+/// How far a garment modelled on a character (`on`) may be from the body's size, as a share
+/// of the body's height, before it is warned of: a collar or a glove is a tenth of a body, a
+/// long cape or a blanket wrapped round it a few bodies; a file in metres read with a
+/// character's centimetres is a hundredth (or a hundred times).
+pub const ON_BODY_SIZES: std::ops::RangeInclusive<f32> = (1.0 / 30.0)..=10.0;
+
+/// A warning for each garment modelled on a character (`on`) whose placed size is far from
+/// that body's: an `on` garment's file is read in the character file's units, and one in
+/// other units (exported from another application) lands tiny at the feet or huge around it.
+/// `bodies`: each character's name and the box of its first frame (so the bake warns of it,
+/// once the characters are loaded; `drape inspect` does not load them).
+pub fn on_body_size_warnings(
+    specs: &[crate::scene::GarmentSpec],
+    garments: &[Garment],
+    bodies: &[(String, (glam::Vec3, glam::Vec3))],
+) -> Vec<String> {
+    let extent = |(lo, hi): (glam::Vec3, glam::Vec3)| (hi - lo).max_element();
+    (specs.iter().zip(garments))
+        .filter_map(|(spec, g)| {
+            let on = spec.on.as_deref()?;
+            let (_, body) = bodies.iter().find(|(name, _)| name == on)?;
+            let tall = body.1.y - body.0.y;
+            let across = extent(super::voxel::bounds(&g.positions));
+            let share = across / tall;
+            (tall > 0.0 && share.is_finite() && !ON_BODY_SIZES.contains(&share)).then(|| {
+                format!(
+                    "garment {} (on {on}): {across:.3} m across where {on} is {tall:.3} m tall ({share:.3} × the body): an `on` garment's file is read in the character file's units and placed by its `scale`; is it in other units (metres against centimetres is 100 ×)?",
+                    g.name
+                )
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -54,5 +88,42 @@ mod tests {
         assert_eq!(found.len(), 1, "{found:?}");
         assert!(found[0].starts_with("garment bare: self-collisions without shear springs"));
         assert!(warned(false).is_empty());
+    }
+
+    /// A garment modelled on a body is warned of when its size is far from the body's (a file
+    /// in other units), not when it is a garment's size, nor when it is on no character.
+    #[test]
+    fn an_on_garment_far_from_its_body_size_is_warned_of() {
+        let text = r#"{ "garments": [
+            { "name": "cape", "resolution": [6, 6], "size": [0.5, 0.5] },
+            { "name": "tiny", "resolution": [6, 6], "size": [0.01, 0.01] },
+            { "name": "huge", "resolution": [6, 6], "size": [20, 20] },
+            { "name": "loose", "resolution": [6, 6], "size": [0.01, 0.01] } ] }"#;
+        let mut scene = Scene::parse(text, "<test>").unwrap();
+        let garments = super::super::build_all(&scene, "<test>").unwrap();
+        for g in &mut scene.garments[..3] {
+            g.on = Some("man".into());
+        }
+        let body = (
+            glam::Vec3::new(-0.3, 0.0, -0.2),
+            glam::Vec3::new(0.3, 1.5, 0.2),
+        );
+        let warned = on_body_size_warnings(&scene.garments, &garments, &[("man".into(), body)]);
+        assert_eq!(warned.len(), 2, "{warned:?}");
+        assert!(
+            warned[0].starts_with("garment tiny (on man): 0.010 m across"),
+            "{warned:?}"
+        );
+        assert!(
+            warned[1].starts_with("garment huge (on man): 20.000 m across"),
+            "{warned:?}"
+        );
+        assert!(
+            warned.iter().all(|w| w.contains("1.500 m tall")),
+            "{warned:?}"
+        );
+        // On a character the scene does not have (no body to compare with): nothing.
+        let elsewhere = on_body_size_warnings(&scene.garments, &garments, &[]);
+        assert!(elsewhere.is_empty(), "{elsewhere:?}");
     }
 }

@@ -384,6 +384,24 @@ pub fn place(scene: &crate::scene::Scene, i: usize, file: &str) -> Result<Placed
     let spacing = g
         .spacing
         .unwrap_or_else(|| ((phi - plo).max_element() / 31.0).max(1e-4));
+    let across = (phi - plo).max_element();
+    if across < 2.0 * spacing {
+        // Two lattice cells at most along every side: a handful of particles, no cloth. Most
+        // likely a mesh in other units than it is read in (a garment in metres modelled on a
+        // character file in centimetres, read at its `scale` 0.01).
+        let read = match &g.on {
+            Some(c) => format!(
+                "an `on` garment's file is read in {c}'s file units and placed by its `scale`; is {name} in other units?"
+            ),
+            None => format!("is {name} in other units than its `scale` ({}) reads?", g.scale),
+        };
+        return Err(fail(
+            if g.on.is_some() { "mesh" } else { "spacing" },
+            format!(
+                "{name}, placed, is {across:.3e} m across, under two lattice spacings ({spacing} m): a handful of particles, no cloth; {read}"
+            ),
+        ));
+    }
     let dims = Voxels::dims_for(plo, phi, spacing);
     let cells: f64 = dims.iter().map(|&n| n as f64).product();
     if cells > crate::scene::MAX_PARTICLES as f64 {
