@@ -49,7 +49,7 @@ pub fn simulation(scene: &Scene, characters: Vec<LoadedCharacter>, file: &str) -
             ))
         })
         .collect();
-    warnings.extend(crate::garment::advice::on_body_size_warnings(
+    warnings.extend(crate::garment::advice::on_body_warnings(
         &scene.garments,
         &garments,
         &bodies,

@@ -34,32 +34,66 @@ pub fn folding_warnings(garments: &[Garment], particle_collisions: bool) -> Vec<
 /// character's centimetres is a hundredth (or a hundred times).
 pub const ON_BODY_SIZES: std::ops::RangeInclusive<f32> = (1.0 / 30.0)..=10.0;
 
-/// A warning for each garment modelled on a character (`on`) whose placed size is far from
-/// that body's: an `on` garment's file is read in the character file's units, and one in
-/// other units (exported from another application) lands tiny at the feet or huge around it.
+/// How far past the box around a body, as a share of its height, a garment modelled on it may
+/// lie without being warned of (3 cm on a 1.5 m body: rounding, and cloth modelled loose).
+pub const ON_BODY_MARGIN: f32 = 0.02;
+
+/// A warning for each garment modelled on a character (`on`) that does not sit on that body as
+/// modelled: its placed size far from the body's ([`ON_BODY_SIZES`]: a file in other units,
+/// which lands tiny at the feet or huge around it), or its box apart from the body's, grown by
+/// [`ON_BODY_MARGIN`] of its height (a file exported with another up axis or placement: a cape
+/// turned onto its back lies beside the feet, and its attachments tear it on the first frame).
+/// A garment modelled on a body meets the box around it.
+/// An `on` garment's file is read in the character file's units and bind-pose frame.
 /// `bodies`: each character's name and the box of its first frame (so the bake warns of it,
 /// once the characters are loaded; `drape inspect` does not load them).
-pub fn on_body_size_warnings(
+pub fn on_body_warnings(
     specs: &[crate::scene::GarmentSpec],
     garments: &[Garment],
     bodies: &[(String, (glam::Vec3, glam::Vec3))],
 ) -> Vec<String> {
-    let extent = |(lo, hi): (glam::Vec3, glam::Vec3)| (hi - lo).max_element();
-    (specs.iter().zip(garments))
-        .filter_map(|(spec, g)| {
-            let on = spec.on.as_deref()?;
-            let (_, body) = bodies.iter().find(|(name, _)| name == on)?;
-            let tall = body.1.y - body.0.y;
-            let across = extent(super::voxel::bounds(&g.positions));
-            let share = across / tall;
-            (tall > 0.0 && share.is_finite() && !ON_BODY_SIZES.contains(&share)).then(|| {
+    use glam::Vec3;
+    let extent = |(lo, hi): (Vec3, Vec3)| (hi - lo).max_element();
+    let mut warnings = Vec::new();
+    for (spec, g) in specs.iter().zip(garments) {
+        let Some(on) = spec.on.as_deref() else {
+            continue;
+        };
+        let Some((_, body)) = bodies.iter().find(|(name, _)| name == on) else {
+            continue;
+        };
+        let tall = body.1.y - body.0.y;
+        let placed = super::voxel::bounds(&g.positions);
+        let across = extent(placed);
+        let share = across / tall;
+        if !(tall > 0.0 && share.is_finite()) {
+            continue;
+        }
+        if !ON_BODY_SIZES.contains(&share) {
+            warnings.push(format!(
+                "garment {} (on {on}): {across:.3} m across where {on} is {tall:.3} m tall ({share:.3} × the body): an `on` garment's file is read in the character file's units and placed by its `scale`; is it in other units (metres against centimetres is 100 ×)?",
+                g.name
+            ));
+            continue;
+        }
+        let margin = Vec3::splat(ON_BODY_MARGIN * tall);
+        let (lo, hi) = (body.0 - margin, body.1 + margin);
+        if placed.0.cmpgt(hi).any() || placed.1.cmplt(lo).any() {
+            let show = |(a, b): (Vec3, Vec3)| {
                 format!(
-                    "garment {} (on {on}): {across:.3} m across where {on} is {tall:.3} m tall ({share:.3} × the body): an `on` garment's file is read in the character file's units and placed by its `scale`; is it in other units (metres against centimetres is 100 ×)?",
-                    g.name
+                    "({:.2}, {:.2}, {:.2})–({:.2}, {:.2}, {:.2}) m",
+                    a.x, a.y, a.z, b.x, b.y, b.z
                 )
-            })
-        })
-        .collect()
+            };
+            warnings.push(format!(
+                "garment {} (on {on}): it lies at {}, apart from {on}'s body at {} in the bake's first frame: an `on` garment's file is in the character file's bind-pose frame, and its own `position` and `rotation` move it from there; was it exported with another up axis or placement?",
+                g.name,
+                show(placed),
+                show(*body)
+            ));
+        }
+    }
+    warnings
 }
 
 #[cfg(test)]
@@ -93,7 +127,7 @@ mod tests {
     /// A garment modelled on a body is warned of when its size is far from the body's (a file
     /// in other units), not when it is a garment's size, nor when it is on no character.
     #[test]
-    fn an_on_garment_far_from_its_body_size_is_warned_of() {
+    fn an_on_garment_far_from_its_body_size_or_place_is_warned_of() {
         let text = r#"{ "garments": [
             { "name": "cape", "resolution": [6, 6], "size": [0.5, 0.5] },
             { "name": "tiny", "resolution": [6, 6], "size": [0.01, 0.01] },
@@ -108,7 +142,7 @@ mod tests {
             glam::Vec3::new(-0.3, 0.0, -0.2),
             glam::Vec3::new(0.3, 1.5, 0.2),
         );
-        let warned = on_body_size_warnings(&scene.garments, &garments, &[("man".into(), body)]);
+        let warned = on_body_warnings(&scene.garments, &garments, &[("man".into(), body)]);
         assert_eq!(warned.len(), 2, "{warned:?}");
         assert!(
             warned[0].starts_with("garment tiny (on man): 0.010 m across"),
@@ -122,8 +156,29 @@ mod tests {
             warned.iter().all(|w| w.contains("1.500 m tall")),
             "{warned:?}"
         );
+        // The cape's size, turned onto its back a metre from the body (another up axis).
+        scene.garments[0].on = Some("man".into());
+        let mut apart = garments.clone();
+        for p in &mut apart[0].positions {
+            *p = glam::Vec3::new(p.x, p.z, -1.2 - p.y);
+        }
+        let warned = on_body_warnings(&scene.garments[..1], &apart[..1], &[("man".into(), body)]);
+        assert_eq!(warned.len(), 1, "{warned:?}");
+        assert!(warned[0].contains("apart from man's body"), "{warned:?}");
+        // Touching the body's box grown by a tenth of its height: not apart.
+        let farthest = apart[0]
+            .positions
+            .iter()
+            .map(|p| p.z)
+            .fold(f32::MIN, f32::max);
+        let shift = (-0.2 - ON_BODY_MARGIN * 1.5 + 0.001) - farthest;
+        for p in &mut apart[0].positions {
+            p.z += shift;
+        }
+        let near = on_body_warnings(&scene.garments[..1], &apart[..1], &[("man".into(), body)]);
+        assert!(near.is_empty(), "{near:?}");
         // On a character the scene does not have (no body to compare with): nothing.
-        let elsewhere = on_body_size_warnings(&scene.garments, &garments, &[]);
+        let elsewhere = on_body_warnings(&scene.garments, &garments, &[]);
         assert!(elsewhere.is_empty(), "{elsewhere:?}");
     }
 }
