@@ -434,6 +434,44 @@ fn inspect_warns_of_a_garment_that_crosses_itself_as_modelled() {
 }
 
 #[test]
+fn inspect_warns_of_a_garment_modelled_on_a_character_in_other_units_or_turned() {
+    // The cape modelled on CesiumMan, on him as modelled, then turned a quarter about x (an OBJ
+    // exported with z up), then on his FBX in centimetres read at scale 0.01 (the cape in
+    // metres lands 4.6 mm across): inspect warns of the last two against his bind pose.
+    let dir = temp_dir();
+    let root = std::env::current_dir().unwrap();
+    let cape = root.join("garments/cesium_cape.obj");
+    let glb = root.join("characters/CesiumMan/CesiumMan.glb");
+    let fbx = root.join("tests/assets/CesiumMan/CesiumMan.fbx");
+    for (body, scale, turn, warned) in [
+        (&glb, 1.0, 0, None),
+        (&glb, 1.0, -90, Some("apart from man's body")),
+        (&fbx, 0.01, 0, Some("0.005 m across where man is")),
+    ] {
+        write(
+            dir.path(),
+            "scene.json",
+            &format!(
+                r#"{{ "garments": [{{ "name": "cape", "kind": "mesh", "mesh": {cape:?}, "on": "man", "rotation": [{turn}, 0, 0] }}],
+                     "characters": [{{ "name": "man", "file": {body:?}, "scale": {scale} }}] }}"#
+            ),
+        );
+        let out = drape(dir.path(), &["inspect", "scene.json"]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let line = text
+            .lines()
+            .find(|l| l.contains("warning: garment cape (on man)"));
+        assert_eq!(
+            line.map(|l| warned.is_some_and(|w| l.contains(w))),
+            warned.map(|_| true),
+            "{} at {scale}, turned {turn}: {text}",
+            body.display()
+        );
+    }
+}
+
+#[test]
 fn inspect_lists_a_characters_joint_offsets_and_where_its_body_crosses_itself() {
     let dir = temp_dir();
     let scene = std::env::current_dir()

@@ -45,8 +45,8 @@ pub const ON_BODY_MARGIN: f32 = 0.02;
 /// turned onto its back lies beside the feet, and its attachments tear it on the first frame).
 /// A garment modelled on a body meets the box around it.
 /// An `on` garment's file is read in the character file's units and bind-pose frame.
-/// `bodies`: each character's name and the box of its first frame (so the bake warns of it,
-/// once the characters are loaded; `drape inspect` does not load them).
+/// `bodies`: each character's name and the box around its body (the bake's first frame for
+/// the bake, the bind pose for `drape inspect`).
 pub fn on_body_warnings(
     specs: &[crate::scene::GarmentSpec],
     garments: &[Garment],
@@ -86,7 +86,7 @@ pub fn on_body_warnings(
                 )
             };
             warnings.push(format!(
-                "garment {} (on {on}): it lies at {}, apart from {on}'s body at {} in the bake's first frame: an `on` garment's file is in the character file's bind-pose frame, and its own `position` and `rotation` move it from there; was it exported with another up axis or placement?",
+                "garment {} (on {on}): it lies at {}, apart from {on}'s body at {}: an `on` garment's file is in the character file's bind-pose frame, and its own `position` and `rotation` move it from there; was it exported with another up axis or placement?",
                 g.name,
                 show(placed),
                 show(*body)
