@@ -215,11 +215,10 @@ fn dressing(
             &points,
             reach,
         );
-        let body = drape::garment::voxel::bounds(&character.bind);
-        let (spec, g) = (std::slice::from_ref(spec), std::slice::from_ref(g));
-        let odd = drape::garment::advice::on_body_warnings(spec, g, &[(on.clone(), body)]);
+        let body = [(on.clone(), drape::garment::voxel::bounds(&character.bind))];
+        let (one_spec, one) = (std::slice::from_ref(spec), std::slice::from_ref(g));
+        let odd = drape::garment::advice::on_body_warnings(one_spec, one, &body);
         lines.extend(odd.into_iter().map(|w| format!("warning: {w}")));
-        let g = &g[0];
         lines.push(format!(
             "garment '{}' on '{on}' in the bind pose: clearance {:.1} mm at the least, {:.1} mm at the 5th percentile; {} of {} particles start inside the body, {} within its shell's reach ({:.1} mm), moved out before the first substep",
             g.name,

@@ -43,8 +43,8 @@ pub const ON_BODY_MARGIN: f32 = 0.02;
 /// which lands tiny at the feet or huge around it), or its box apart from the body's, grown by
 /// [`ON_BODY_MARGIN`] of its height (a file exported with another up axis or placement: a cape
 /// turned onto its back lies beside the feet, and its attachments tear it on the first frame).
-/// A garment modelled on a body meets the box around it.
-/// An `on` garment's file is read in the character file's units and bind-pose frame.
+/// A garment modelled on a body meets the box around it: an `on` garment's file is read in the
+/// character file's units and bind-pose frame.
 /// `bodies`: each character's name and the box around its body (the bake's first frame for
 /// the bake, the bind pose for `drape inspect`).
 pub fn on_body_warnings(
@@ -125,7 +125,8 @@ mod tests {
     }
 
     /// A garment modelled on a body is warned of when its size is far from the body's (a file
-    /// in other units), not when it is a garment's size, nor when it is on no character.
+    /// in other units) or it lies apart from the body (another up axis); not when it is a
+    /// garment's size on the body, nor when it is on no character.
     #[test]
     fn an_on_garment_far_from_its_body_size_or_place_is_warned_of() {
         let text = r#"{ "garments": [
@@ -165,7 +166,7 @@ mod tests {
         let warned = on_body_warnings(&scene.garments[..1], &apart[..1], &[("man".into(), body)]);
         assert_eq!(warned.len(), 1, "{warned:?}");
         assert!(warned[0].contains("apart from man's body"), "{warned:?}");
-        // Touching the body's box grown by a tenth of its height: not apart.
+        // Touching the body's box grown by `ON_BODY_MARGIN` of its height: not apart.
         let farthest = apart[0]
             .positions
             .iter()
