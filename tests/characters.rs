@@ -550,30 +550,6 @@ fn cesium_man() -> PathBuf {
     PathBuf::from("characters/CesiumMan/CesiumMan.glb")
 }
 
-/// Writes a GLB of `root` (as `gltf-json` serialises it) with `blob` as its binary chunk.
-fn write_glb(path: &Path, root: &gltf::json::Root, blob: &[u8]) {
-    let mut json = gltf::json::serialize::to_vec(root).unwrap();
-    while json.len() % 4 != 0 {
-        json.push(b' ');
-    }
-    let mut bin = blob.to_vec();
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let length = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(length);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(length as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    std::fs::write(path, out).unwrap();
-}
-
 /// CesiumMan with its mesh node renamed to the pelvis bone's name and moved before the bone
 /// in depth-first order: a name lookup now finds the mesh node first.
 fn cesium_man_with_a_duplicate_name(dir: &Path) -> PathBuf {
@@ -598,7 +574,7 @@ fn cesium_man_with_a_duplicate_name(dir: &Path) -> PathBuf {
         gltf::json::Index::new(bone as u32),
     ]);
     let path = dir.join("duplicate_name.glb");
-    write_glb(&path, &root, blob.as_deref().unwrap());
+    common::write_glb(&path, &root, blob.as_deref().unwrap());
     path
 }
 
@@ -758,16 +734,11 @@ fn vertex_ranges(asset: &Asset) -> Vec<(String, std::ops::Range<usize>)> {
     let mut out = Vec::new();
     let mut start = 0;
     for m in &asset.meshes {
-        let copies = if m.bones.is_empty() {
-            m.instances.len()
-        } else {
-            1
-        };
         let name = match m.name.rsplit_once('-') {
             Some((base, n)) if n.parse::<u32>().is_ok() => base.to_string(),
             _ => m.name.clone(),
         };
-        for _ in 0..copies {
+        for _ in 0..m.copies() {
             out.push((name.clone(), start..start + m.vertices.len()));
             start += m.vertices.len();
         }

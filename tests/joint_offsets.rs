@@ -292,7 +292,7 @@ fn one_part(linear: glam::Mat3) -> Asset {
             bones: Vec::new(),
             weights: Vec::new(),
             instances: vec![2],
-            uvs: None,
+            ..Mesh::default()
         }],
         clips: Vec::new(),
         warnings: Vec::new(),

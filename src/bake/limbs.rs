@@ -47,7 +47,7 @@ pub fn body_crossings(scene: &Scene, k: usize) -> Result<Option<(usize, Vec<Body
         }
         return Ok(None);
     }
-    let asset = Asset::open(&path)?;
+    let asset = Asset::open_character(&path)?;
     let character = Character::from_asset(&asset, &path, &options, scene.fps, frames)?;
     if character.frames.len() < 2 {
         return Ok(None);

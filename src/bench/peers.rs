@@ -500,7 +500,7 @@ fn write_job(peer: &Peer, path: &Path) -> Result<()> {
         None => serde_json::Value::Null,
         Some(c) => {
             let file = s.character_path(0);
-            let asset = crate::mesh::import::Asset::open(&file)?;
+            let asset = crate::mesh::import::Asset::open_character(&file)?;
             let clip = match &c.clip {
                 Some(name) => Some(asset.clip_index(name).ok_or_else(|| Error::InvalidField {
                     file: file.display().to_string(),

@@ -252,8 +252,9 @@ impl Sequence {
             visible: None,
             warnings: Vec::new(),
         };
+        let mut repeats: Vec<(String, usize, usize)> = Vec::new(); // (text less the file, at, more)
         for file in files {
-            let asset = Asset::open(file)?;
+            let asset = Asset::open_character(file)?;
             let pose = asset.pose(None, 0.0);
             (read.stored).push(
                 pose.iter()
@@ -269,11 +270,21 @@ impl Sequence {
             if options.selects() && read.visible.is_none() {
                 read.visible = Some(asset.triangles());
             }
+            // A warning repeated by every file (each naming its own) is given once, counted.
+            let name = file.display().to_string();
             for w in asset.warnings {
-                if !read.warnings.contains(&w) {
-                    read.warnings.push(w);
+                let key = w.replace(&name, "");
+                match repeats.iter_mut().find(|r| r.0 == key) {
+                    Some(r) => r.2 += 1,
+                    None => {
+                        repeats.push((key, read.warnings.len(), 0));
+                        read.warnings.push(w);
+                    }
                 }
             }
+        }
+        for (_, at, more) in repeats.into_iter().filter(|r| r.2 > 0) {
+            read.warnings[at] += &format!(" (and so in {more} more of the sequence's files)");
         }
         Ok(read)
     }
@@ -290,7 +301,7 @@ impl Character {
     ) -> Result<Character> {
         let files = sequence_files(source)?;
         if files.len() == 1 && !source.is_dir() {
-            let asset = Asset::open(&files[0])?;
+            let asset = Asset::open_character(&files[0])?;
             return Character::from_asset(&asset, source, options, fps, frames);
         }
         if !options.joint_offsets.is_empty() {

@@ -264,7 +264,7 @@ pub fn inspect(
         .check_shell(radius)
         .map_err(|reason| bad_flag("radius", reason))?;
     if path.is_file() && !path.to_string_lossy().contains('%') {
-        let asset = drape::character::Asset::open(path)?;
+        let asset = drape::character::Asset::open_character(path)?;
         inspect_meshes(&asset, &character, options, radius);
         inspect_joints(&asset, path);
         inspect_poses(&asset, &character, options);

@@ -344,3 +344,27 @@ pub fn worst_corner_distance(
     }
     worst
 }
+
+/// Writes a GLB of `root` (as `gltf-json` serialises it) with `blob` as its binary chunk.
+pub fn write_glb(path: &Path, root: &gltf::json::Root, blob: &[u8]) {
+    let mut json = gltf::json::serialize::to_vec(root).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut bin = blob.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let length = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(length);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(length as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    std::fs::write(path, out).unwrap();
+}

@@ -136,7 +136,16 @@ fn from_scene(scene: &AiScene, file: &str) -> Result<Asset> {
     let mut nodes = Vec::new();
     let mut placements = Vec::new();
     flatten(root, None, &mut nodes, &mut placements);
-    let (bound, warnings) = bind_names(&nodes, &placements, file);
+    let (bound, mut warnings) = bind_names(&nodes, &placements, file);
+    let shaped: Vec<&str> = (scene.meshes.iter())
+        .filter(|m| !m.anim_meshes.is_empty())
+        .map(|m| m.name.as_str())
+        .collect();
+    if !shaped.is_empty() {
+        warnings.push(format!(
+            "{file}: meshes {shaped:?} have morph targets (blend shapes), which drape reads from glTF only: they collide in their base shape; export the character as glTF (or apply the shapes) for the body the DCC shows"
+        ));
+    }
     let find = |name: &str| bound.get(name).copied();
 
     let mut meshes = Vec::new();
@@ -188,6 +197,7 @@ fn from_scene(scene: &AiScene, file: &str) -> Result<Asset> {
                 .first()
                 .and_then(|set| set.as_ref())
                 .map(|set| set.iter().map(|t| [t.x, t.y]).collect()),
+            ..Mesh::default()
         });
     }
 
@@ -226,6 +236,7 @@ fn from_scene(scene: &AiScene, file: &str) -> Result<Asset> {
                             .iter()
                             .map(|k| (k.time / tps, vec3(&k.value)))
                             .collect(),
+                        weights: Vec::new(),
                     })
                 })
                 .collect();

@@ -8,7 +8,8 @@
 //! every shipped clip, but orders some meshes otherwise and names primitives "Torso-0".
 //!
 //! As in assimp's glTF importer, texture V is flipped (glTF's origin is top-left, OBJ's
-//! bottom-left) and morph targets are not applied. Samplers: linear keys as they are, step keys
+//! bottom-left). Morph targets' position displacements are read, with their default and
+//! animated weights, and applied before skinning ([`super::morph`]). Samplers: linear keys as they are, step keys
 //! doubled (the value held until the next key's time), cubic-spline keys sampled eight times
 //! per interval on their Hermite curve.
 
@@ -171,6 +172,31 @@ fn meshes(
                 }
                 super::normalise(&mut weights);
             }
+            let targets: Vec<Vec<Vec3>> = (reader.read_morph_targets())
+                .map(|(positions, _, _)| match positions {
+                    Some(d) => d.map(Vec3::from).collect(),
+                    None => vec![Vec3::ZERO; vertices.len()],
+                })
+                .collect();
+            let mut target_weights = Vec::new();
+            for n in users.iter().filter(|n| index[n.index()].is_some()) {
+                let w = n.weights().or(mesh.weights()).unwrap_or_default();
+                if !w.is_empty() && w.len() != targets.len() {
+                    let field = match n.weights() {
+                        Some(_) => format!("nodes[{}].weights", n.index()),
+                        None => format!("meshes[{}].weights", mesh.index()),
+                    };
+                    return Err(bad(
+                        field,
+                        format!(
+                            "has {} weights for {} morph targets",
+                            w.len(),
+                            targets.len()
+                        ),
+                    ));
+                }
+                target_weights.push(w.to_vec());
+            }
             out.push(Mesh {
                 name: name.clone(),
                 node: users
@@ -184,6 +210,9 @@ fn meshes(
                 bones: bones.clone(),
                 weights,
                 instances: users.iter().filter_map(|n| index[n.index()]).collect(),
+                flipped: Vec::new(),
+                targets,
+                target_weights,
                 uvs: reader
                     .read_tex_coords(0)
                     .map(|t| t.into_f32().map(|[u, v]| [u, 1.0 - v]).collect()),
@@ -282,7 +311,9 @@ fn clip(
                 let values = r.into_f32().map(Quat::from_array).collect();
                 target.rotation = keys(&times, values, how);
             }
-            ReadOutputs::MorphTargetWeights(_) => {}
+            ReadOutputs::MorphTargetWeights(w) => {
+                target.weights = weight_keys(&times, w.into_f32().collect(), how)
+            }
         }
     }
     Clip {
@@ -290,6 +321,25 @@ fn clip(
         duration,
         channels,
     }
+}
+
+/// A weights sampler's keys per morph target: its outputs hold every target's weight at each
+/// key (with a cubic spline, every in-tangent, then every value, then every out-tangent).
+fn weight_keys(times: &[f64], flat: Vec<f32>, how: Interpolation) -> Vec<Vec<(f64, f32)>> {
+    let per_key = if how == Interpolation::CubicSpline {
+        3
+    } else {
+        1
+    };
+    let targets = flat.len() / (per_key * times.len()).max(1);
+    (0..targets)
+        .map(|k| {
+            let values = (0..times.len() * per_key)
+                .filter_map(|slot| flat.get(slot * targets + k).copied())
+                .collect();
+            keys(times, values, how)
+        })
+        .collect()
 }
 
 /// What a cubic spline needs of a key value: sums of scaled values (component-wise for
@@ -303,6 +353,15 @@ trait Mix: Copy {
 }
 
 impl Mix for Vec3 {
+    fn scaled(self, s: f32) -> Self {
+        self * s
+    }
+    fn plus(self, o: Self) -> Self {
+        self + o
+    }
+}
+
+impl Mix for f32 {
     fn scaled(self, s: f32) -> Self {
         self * s
     }

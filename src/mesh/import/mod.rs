@@ -7,7 +7,10 @@
 //!    applied (only rigid meshes use their node's global transform);
 //! 2. node names repeat: glTF binds skins and channels by node index, and so does drape; assimp
 //!    binds by name, so there names are resolved to bones first (see [`assimp`]);
-//! 3. skin weights are normalised per vertex (some files sum to 1.755).
+//! 3. skin weights are normalised per vertex (some files sum to 1.755);
+//! 4. a mesh placed by a mirroring transform is wound the other way, and a character's mesh
+//!    wound inside out is turned with a warning ([`orient`]);
+//! 5. glTF morph targets are applied at their default or animated weights ([`morph`]).
 //!
 //! Times are in seconds. Rotation keys are interpolated with slerp, translation and scale
 //! linearly; glTF's step and cubic-spline samplers are turned into such keys on import.
@@ -15,7 +18,11 @@
 mod assimp;
 mod gltf;
 mod joints;
+mod morph;
 mod offsets;
+mod orient;
+
+pub use orient::{inside_out_measure, INSIDE_OUT};
 
 use crate::error::{Error, Result};
 use glam::{Mat4, Quat, Vec3};
@@ -39,7 +46,7 @@ pub struct Bone {
 }
 
 /// One mesh as posed by the hierarchy (a glTF primitive, an assimp mesh).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Mesh {
     pub name: String,
     /// Name of the node that carries it (the first instance's, for a rigid mesh).
@@ -56,6 +63,40 @@ pub struct Mesh {
     pub instances: Vec<usize>,
     /// First texture coordinate set, one per vertex, when the file has one.
     pub uvs: Option<Vec<[f32; 2]>>,
+    /// A rigid mesh's instances whose triangles are turned (wound the other way) where they
+    /// are placed: a mirroring node ([`orient`]). Empty: none (a skinned mesh's are turned in
+    /// `triangles`).
+    pub flipped: Vec<bool>,
+    /// Morph targets (blend shapes): per target, each vertex's displacement, added weighted
+    /// before the mesh is skinned or placed ([`morph`]). Empty without (and from assimp).
+    pub targets: Vec<Vec<Vec3>>,
+    /// Each instance's default target weights: its node's, else the mesh's (glTF `weights`).
+    pub target_weights: Vec<Vec<f32>>,
+}
+
+/// Where [`Asset::for_each_copy`] is: the mesh's index, which copy of it (a rigid mesh's
+/// instance), its first vertex in [`Asset::pose`], and whether its triangles are turned.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    mesh: usize,
+    copy: usize,
+    base: u32,
+    flip: bool,
+}
+
+impl Placed {
+    /// Triangle `t` of the mesh as this copy winds it (still in the mesh's own vertices).
+    fn turn(&self, [a, b, c]: [u32; 3]) -> [u32; 3] {
+        match self.flip {
+            true => [a, c, b],
+            false => [a, b, c],
+        }
+    }
+
+    /// Triangle `t` of the mesh over [`Asset::pose`]'s vertices.
+    fn place(&self, t: [u32; 3]) -> [u32; 3] {
+        self.turn(t).map(|i| i + self.base)
+    }
 }
 
 /// Keys of one animated node, times in seconds.
@@ -65,6 +106,8 @@ pub struct Channel {
     pub translation: Vec<(f64, Vec3)>,
     pub rotation: Vec<(f64, Quat)>,
     pub scale: Vec<(f64, Vec3)>,
+    /// Morph target weights of the mesh the node places: keys per target.
+    pub weights: Vec<Vec<(f64, f32)>>,
 }
 
 /// A named animation clip.
@@ -113,7 +156,7 @@ pub fn matches(mesh: &Mesh, name: &str) -> bool {
 }
 
 /// Bumped when an importer's output changes, so shell caches of the old import are rebuilt.
-pub const IMPORTER: u32 = 2;
+pub const IMPORTER: u32 = 3;
 
 /// Divides each vertex's skin weights by their sum (some files sum to 1.755).
 fn normalise(weights: &mut [Vec<(u32, f32)>]) {
@@ -141,6 +184,15 @@ impl Asset {
         }
     }
 
+    /// Reads a character's file as [`Asset::open`] does, with each mesh wound inside out turned
+    /// to face out and a warning of it in `warnings` ([`Asset::turn_inside_out_meshes`]).
+    pub fn open_character(path: &Path) -> Result<Asset> {
+        let mut asset = Asset::open(path)?;
+        let turned = asset.turn_inside_out_meshes(path);
+        asset.warnings.extend(turned);
+        Ok(asset)
+    }
+
     /// Reads any file through assimp, glTF included: the way drape read glTF before it bound
     /// by index, kept for comparisons in the tests.
     pub fn open_with_assimp(path: &Path) -> Result<Asset> {
@@ -164,7 +216,8 @@ impl Asset {
                 std::io::Error::new(kind, reason),
             ));
         }
-        let asset = reader(path)?;
+        let mut asset = reader(path)?;
+        asset.orient_by_transforms();
         let file = path.display().to_string();
         for mesh in &asset.meshes {
             mesh.check(&file)?;
@@ -238,9 +291,9 @@ impl Asset {
             )));
         }
         let mut out = Vec::new();
-        self.for_each_copy(|m, base| {
+        self.for_each_copy(|m, at| {
             if selection.collides(m) {
-                out.extend(m.triangles.iter().map(|t| t.map(|i| i + base)));
+                out.extend(m.triangles.iter().map(|&t| at.place(t)));
             }
         });
         if out.is_empty() {
@@ -253,17 +306,21 @@ impl Asset {
     }
 
     /// Calls `f` for each mesh as laid out in [`Asset::pose`] (rigid meshes once per instance)
-    /// with the index of its first vertex there.
-    fn for_each_copy<'a>(&'a self, mut f: impl FnMut(&'a Mesh, u32)) {
+    /// with where the copy is ([`Placed`]).
+    fn for_each_copy<'a>(&'a self, mut f: impl FnMut(&'a Mesh, Placed)) {
         let mut base = 0u32;
-        for m in &self.meshes {
-            let copies = if m.bones.is_empty() {
-                m.instances.len()
-            } else {
-                1
-            };
-            for _ in 0..copies {
-                f(m, base);
+        for (k, m) in self.meshes.iter().enumerate() {
+            for copy in 0..m.copies() {
+                let flip = m.flipped.get(copy).copied().unwrap_or(false);
+                f(
+                    m,
+                    Placed {
+                        mesh: k,
+                        copy,
+                        base,
+                        flip,
+                    },
+                );
                 base += m.vertices.len() as u32;
             }
         }
@@ -291,7 +348,10 @@ impl Asset {
     /// Every posed vertex at time `t` of `clip`: meshes in file order, rigid meshes once per
     /// instance. The order (and count) never changes with time.
     pub fn pose(&self, clip: Option<usize>, t: f64) -> Vec<Vec3> {
-        self.skin(&self.globals(&self.posed_locals(clip, t)))
+        self.skin(
+            &self.globals(&self.posed_locals(clip, t)),
+            &self.weights_at(clip, t),
+        )
     }
 
     /// [`Asset::local_transforms`] with the joint offsets applied: the clip as posed.
@@ -311,15 +371,18 @@ impl Asset {
     pub fn bind_pose(&self) -> Vec<Vec3> {
         let rest = self.node_transforms(None, 0.0);
         let bind = self.bind_transforms();
+        let weights = self.default_weights();
         let mut out = Vec::new();
-        for m in &self.meshes {
+        for (m, weights) in self.meshes.iter().zip(&weights) {
             if m.bones.is_empty() {
-                for &node in &m.instances {
-                    out.extend(m.vertices.iter().map(|&v| bind[node].transform_point3(v)));
+                for (&node, w) in m.instances.iter().zip(weights) {
+                    let shaped = m.shaped(w);
+                    out.extend(shaped.iter().map(|&v| bind[node].transform_point3(v)));
                 }
             } else {
                 let place = m.instances.first().map_or(Mat4::IDENTITY, |&n| rest[n]);
-                out.extend(m.vertices.iter().map(|&v| place.transform_point3(v)));
+                let shaped = m.shaped(&weights[0]);
+                out.extend(shaped.iter().map(|&v| place.transform_point3(v)));
             }
         }
         out
@@ -378,7 +441,8 @@ impl Asset {
                 None => local,
             });
         }
-        self.skin(&global)
+        let weights = morph::blend(&self.default_weights(), &self.weights_at(clip, t), w);
+        self.skin(&global, &weights)
     }
 
     /// Every node's transform relative to its parent at time `t` of `clip` (rest without one).
@@ -396,19 +460,21 @@ impl Asset {
         local
     }
 
-    /// Every vertex with the nodes at `global`: rigid meshes once per instance, skinned ones
-    /// by their bones.
-    fn skin(&self, global: &[Mat4]) -> Vec<Vec3> {
+    /// Every vertex with the nodes at `global` and the morph targets at `weights`: rigid meshes
+    /// once per instance, skinned ones by their bones.
+    fn skin(&self, global: &[Mat4], weights: &morph::Weights) -> Vec<Vec3> {
         let mut out = Vec::new();
-        for m in &self.meshes {
+        for (m, weights) in self.meshes.iter().zip(weights) {
             if m.bones.is_empty() {
-                for &node in &m.instances {
-                    out.extend(m.vertices.iter().map(|&v| global[node].transform_point3(v)));
+                for (&node, w) in m.instances.iter().zip(weights) {
+                    let shaped = m.shaped(w);
+                    out.extend(shaped.iter().map(|&v| global[node].transform_point3(v)));
                 }
                 continue;
             }
             let skins: Vec<Mat4> = m.bones.iter().map(|b| global[b.node] * b.offset).collect();
-            out.extend(m.vertices.iter().zip(&m.weights).map(|(&v, w)| {
+            let shaped = m.shaped(&weights[0]);
+            out.extend(shaped.iter().zip(&m.weights).map(|(&v, w)| {
                 if w.is_empty() {
                     return v;
                 }
@@ -451,12 +517,21 @@ impl Asset {
     /// Triangles over the vertices of [`Asset::pose`].
     pub fn triangles(&self) -> Vec<[u32; 3]> {
         let mut out = Vec::new();
-        self.for_each_copy(|m, base| out.extend(m.triangles.iter().map(|t| t.map(|i| i + base))));
+        self.for_each_copy(|m, at| out.extend(m.triangles.iter().map(|&t| at.place(t))));
         out
     }
 }
 
 impl Mesh {
+    /// How many copies [`Asset::pose`] lays out: a rigid mesh one per node that places it, a
+    /// skinned one one.
+    pub fn copies(&self) -> usize {
+        match self.bones.is_empty() {
+            true => self.instances.len(),
+            false => 1,
+        }
+    }
+
     /// Refuses a mesh with a non-finite vertex or texture coordinate, or a triangle that names
     /// a vertex it does not have: nothing downstream can make sense of them.
     fn check(&self, file: &str) -> Result<()> {
@@ -477,6 +552,24 @@ impl Mesh {
             return Err(bad(format!(
                 "triangle {t:?} names a vertex past its {count}"
             )));
+        }
+        for (k, target) in self.targets.iter().enumerate() {
+            if target.len() != count {
+                return Err(bad(format!(
+                    "morph target {k} moves {} vertices of its {count}",
+                    target.len()
+                )));
+            }
+            if target.iter().any(|d| !d.is_finite()) {
+                return Err(bad(format!(
+                    "morph target {k} is not finite (NaN or infinite)"
+                )));
+            }
+        }
+        if (self.target_weights.iter().flatten()).any(|w| !w.is_finite()) {
+            return Err(bad(
+                "a morph target weight is not finite (NaN or infinite)".into()
+            ));
         }
         let uvs_finite = self
             .uvs
