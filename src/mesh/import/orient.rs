@@ -20,7 +20,7 @@ use super::Asset;
 use glam::{Mat3, Mat4, Vec3};
 
 /// A mesh is inside out when its signed volume about its centre is below −this × its area^1.5
-/// (a sphere is 0.094, a cube 0.068, a half cylinder open along its length 0.06; a plate of
+/// (a sphere is 0.094, a cube 0.068, an open half cylinder 0.3 m in radius and 1 m long 0.06; a plate of
 /// 1 × 1 × 0.01 is 0.0034).
 pub const INSIDE_OUT: f32 = 0.01;
 

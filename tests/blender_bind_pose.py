@@ -1,0 +1,45 @@
+# Blender's own glTF exports of CesiumMan, as he comes (plain) and mirrored at his root (scale
+# x -1), with Blender's rest position of each: the bind pose an artist models garments on.
+# Run by tests/blender.rs: blender -b --factory-startup --python this -- CHARACTER OUT_DIR
+# Prints one line "RESULT {json}": per export its file and the box of the rest-position mesh in
+# glTF's axes (Y up).
+import json
+import sys
+
+import numpy
+
+numpy.bool = bool  # Blender 3.4's glTF importer needs it with numpy >= 1.24
+import bpy
+
+character, out = sys.argv[sys.argv.index("--") + 1:]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.import_scene.gltf(filepath=character)
+scene = bpy.context.scene
+armature = next(o for o in scene.objects if o.type == "ARMATURE")
+body = next(o for o in scene.objects if o.type == "MESH")
+
+
+def rest_box():
+    armature.data.pose_position = "REST"
+    bpy.context.view_layer.update()
+    evaluated = body.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    # Blender is Z up; its glTF export writes (x, z, -y).
+    points = [evaluated.matrix_world @ v.co for v in mesh.vertices]
+    points = [(p.x, p.z, -p.y) for p in points]
+    evaluated.to_mesh_clear()
+    armature.data.pose_position = "POSE"
+    return [[min(p[k] for p in points) for k in range(3)], [max(p[k] for p in points) for k in range(3)]]
+
+
+result = {}
+for name in ("plain", "mirrored"):
+    if name == "mirrored":
+        for o in scene.objects:
+            if o.parent is None:
+                o.scale.x *= -1
+        bpy.context.view_layer.update()
+    path = f"{out}/{name}.glb"
+    bpy.ops.export_scene.gltf(filepath=path, export_format="GLB")
+    result[name] = {"file": path, "rest_box": rest_box()}
+print("RESULT " + json.dumps(result))
