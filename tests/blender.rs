@@ -5,8 +5,8 @@
 //! the character drape baked (the clip lined up frame for frame), and the same for a character
 //! animated without an armature (written as one OBJ per frame); Cancel stops the bake with a
 //! checkpoint that Resume continues from; a garment with no faces gets drape's own message.
-//! And Blender's glTF exports of a character, plain and mirrored, against Blender's own rest
-//! position (`tests/blender_bind_pose.py`).
+//! And Blender's glTF exports of a character, plain, shaped by a shape key and mirrored,
+//! against Blender's own rest position (`tests/blender_bind_pose.py`).
 
 mod common;
 
@@ -107,7 +107,9 @@ fn blenders_exports_of_a_character_keep_his_bind_pose_and_face_out() {
     // Blender writes a skinned mesh's vertices in the scene's space, as glTF says (CesiumMan as
     // shipped has them in his mesh node's): read as shipped, Blender's export of him lay on his
     // side in the bind pose and a cape modelled on him tore in the pre-roll. Mirrored at his
-    // root (scale x −1), Blender's export is inside out, and is turned to face out.
+    // root (scale x −1), Blender's export is inside out, and is turned to face out. With a body
+    // shape left on (a shape key at 0.7, a morph target with that default weight), the bind
+    // pose is the shaped body Blender rests in.
     let dir = common::temp_dir();
     let work = dir.path();
     let man =
@@ -117,7 +119,7 @@ fn blenders_exports_of_a_character_keep_his_bind_pose_and_face_out() {
         &[man.as_os_str(), work.as_os_str()],
         work,
     );
-    for name in ["plain", "mirrored"] {
+    for name in ["plain", "shaped", "mirrored"] {
         let file = std::path::PathBuf::from(r[name]["file"].as_str().unwrap());
         let asset = drape::mesh::import::Asset::open_character(&file).unwrap();
         // Blender 3.4 writes the mirrored mesh's vertices mirrored and its winding as it was,

@@ -1,5 +1,6 @@
-# Blender's own glTF exports of CesiumMan, as he comes (plain) and mirrored at his root (scale
-# x -1), with Blender's rest position of each: the bind pose an artist models garments on.
+# Blender's own glTF exports of CesiumMan, as he comes (plain), with a body shape left on
+# (shaped: a shape key at 0.7) and mirrored at his root (scale x -1), with Blender's rest
+# position of each: the bind pose an artist models garments on.
 # Run by tests/blender.rs: blender -b --factory-startup --python this -- CHARACTER OUT_DIR
 # Prints one line "RESULT {json}": per export its file and the box of the rest-position mesh in
 # glTF's axes (Y up).
@@ -33,8 +34,17 @@ def rest_box():
 
 
 result = {}
-for name in ("plain", "mirrored"):
+for name in ("plain", "shaped", "mirrored"):
+    if name == "shaped":
+        # A body shape left on: a shape key pushing every vertex 2 cm out along its normal, at
+        # 0.7 (glTF: a morph target with default weight 0.7).
+        body.shape_key_add(name="Basis")
+        heavy = body.shape_key_add(name="Heavy")
+        for v, point in zip(body.data.vertices, heavy.data):
+            point.co = v.co + v.normal * 0.02
+        heavy.value = 0.7
     if name == "mirrored":
+        heavy.value = 0.0
         for o in scene.objects:
             if o.parent is None:
                 o.scale.x *= -1

@@ -133,6 +133,14 @@ fn a_character_wound_inside_out_is_turned_and_warned_of() {
         read.warnings
     );
     assert!(!plain.warnings.iter().any(|w| w.contains("inside out")));
+    // `drape inspect` says so too.
+    let run = common::drape(dir.path(), &["inspect", inside_out.to_str().unwrap()]);
+    assert!(run.status.success());
+    assert!(
+        common::stderr(&run).contains("is wound inside out"),
+        "{}",
+        common::stderr(&run)
+    );
     // A sequence of such files warns once, with the count of the others.
     let frames = dir.path().join("frames");
     std::fs::create_dir(&frames).unwrap();

@@ -229,6 +229,9 @@ pub fn inspect(
     if let Some(w) = character.size_warning(options.scale) {
         eprintln!("drape: warning: {w}");
     }
+    for w in &character.warnings {
+        eprintln!("drape: warning: {w}");
+    }
     println!("character {}: valid", path.display());
     for (i, (name, duration)) in character.clips.iter().enumerate() {
         let label = if name.is_empty() {
