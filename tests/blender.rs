@@ -166,4 +166,15 @@ fn blenders_exports_of_a_character_keep_his_bind_pose_and_face_out() {
             "{name}: {measure}"
         );
     }
+    // Through assimp (FBX) the shape key is not read: said, not silently dropped.
+    let fbx = std::path::PathBuf::from(r["shaped_fbx"].as_str().unwrap());
+    let asset = drape::mesh::import::Asset::open_character(&fbx).unwrap();
+    assert!(
+        asset
+            .warnings
+            .iter()
+            .any(|w| w.contains("morph targets") && w.contains("shaped.fbx")),
+        "{:?}",
+        asset.warnings
+    );
 }

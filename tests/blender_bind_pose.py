@@ -1,6 +1,6 @@
 # Blender's own glTF exports of CesiumMan, as he comes (plain), with a body shape left on
 # (shaped: a shape key at 0.7) and mirrored at his root (scale x -1), with Blender's rest
-# position of each: the bind pose an artist models garments on.
+# position of each: the bind pose an artist models garments on; and the shaped one as FBX.
 # Run by tests/blender.rs: blender -b --factory-startup --python this -- CHARACTER OUT_DIR
 # Prints one line "RESULT {json}": per export its file and the box of the rest-position mesh in
 # glTF's axes (Y up).
@@ -52,4 +52,7 @@ for name in ("plain", "shaped", "mirrored"):
     path = f"{out}/{name}.glb"
     bpy.ops.export_scene.gltf(filepath=path, export_format="GLB")
     result[name] = {"file": path, "rest_box": rest_box()}
+    if name == "shaped":
+        result["shaped_fbx"] = f"{out}/shaped.fbx"
+        bpy.ops.export_scene.fbx(filepath=result["shaped_fbx"])
 print("RESULT " + json.dumps(result))
