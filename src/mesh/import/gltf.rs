@@ -8,10 +8,10 @@
 //! every shipped clip, but orders some meshes otherwise and names primitives "Torso-0".
 //!
 //! As in assimp's glTF importer, texture V is flipped (glTF's origin is top-left, OBJ's
-//! bottom-left). Morph targets' position displacements are read, with their default and
-//! animated weights, and applied before skinning ([`super::morph`]). Samplers: linear keys as they are, step keys
-//! doubled (the value held until the next key's time), cubic-spline keys sampled eight times
-//! per interval on their Hermite curve.
+//! bottom-left). Morph targets' position displacements are read with their default and
+//! animated weights, and applied before skinning ([`super::morph`]). Samplers: linear keys as
+//! they are, step keys doubled (the value held until the next key's time), cubic-spline keys
+//! sampled eight times per interval on their Hermite curve.
 
 use super::{Asset, Bone, Channel, Clip, Mesh, Node};
 use crate::error::{Error, Result};

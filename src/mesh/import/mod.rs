@@ -218,11 +218,11 @@ impl Asset {
             ));
         }
         let mut asset = reader(path)?;
-        asset.orient_by_transforms();
         let file = path.display().to_string();
         for mesh in &asset.meshes {
             mesh.check(&file)?;
         }
+        asset.orient_by_transforms();
         if asset.meshes.iter().all(|m| m.triangles.is_empty()) {
             return Err(Error::InvalidField {
                 file,
@@ -451,8 +451,9 @@ impl Mesh {
         }
     }
 
-    /// Refuses a mesh with a non-finite vertex or texture coordinate, or a triangle that names
-    /// a vertex it does not have: nothing downstream can make sense of them.
+    /// Refuses a mesh with a non-finite vertex, morph target, weight or texture coordinate, a
+    /// morph target of another length, or a triangle that names a vertex it does not have:
+    /// nothing downstream can make sense of them.
     fn check(&self, file: &str) -> Result<()> {
         let bad = |reason: String| Error::InvalidField {
             file: file.into(),
