@@ -109,6 +109,33 @@ fn oriented(v: &[Vec3], t: &[[u32; 3]]) -> Vec<[[i64; 3]; 3]> {
 }
 
 #[test]
+fn a_rigid_part_mirrored_by_its_own_node_faces_out() {
+    // RobotExpressive's rigid parts hang under his bones, one node each: the first of them
+    // mirrored in its own frame (a left part made from a right one), the rest as they are.
+    let dir = common::temp_dir();
+    let file = Path::new("characters/RobotExpressive/RobotExpressive.glb");
+    let gltf::Gltf { document, blob } = gltf::Gltf::open(file).unwrap();
+    let mut root = document.into_json();
+    let part = (root.nodes.iter())
+        .position(|n| n.mesh.is_some() && n.skin.is_none() && n.matrix.is_none())
+        .expect("a rigid part");
+    let [x, y, z] = root.nodes[part].scale.unwrap_or([1.0; 3]);
+    root.nodes[part].scale = Some([-x, y, z]);
+    let path = dir.path().join("one_part_mirrored.glb");
+    common::write_glb(&path, &root, blob.as_deref().unwrap());
+    let asset = Asset::open(&path).unwrap();
+    let (pose, triangles) = (asset.pose(None, 0.0), asset.triangles());
+    let mut parts = 0;
+    for (mesh, range) in asset.mesh_triangle_ranges() {
+        let corners = triangles[range].iter().map(|t| t.map(|i| pose[i as usize]));
+        let measure = inside_out_measure(corners);
+        assert!(measure > INSIDE_OUT, "{} measures {measure}", mesh.name);
+        parts += 1;
+    }
+    assert_eq!(parts, 19, "every copy of the robot's meshes measured");
+}
+
+#[test]
 fn a_character_wound_inside_out_is_turned_and_warned_of() {
     let dir = common::temp_dir();
     let body = Path::new("characters/mannequin/stool.obj");

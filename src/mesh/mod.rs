@@ -140,3 +140,25 @@ pub fn welded_normals(vertices: &[Vec3], triangles: &[[u32; 3]], weld: &Weld) ->
         .map(|&s| sum[s as usize].normalize_or_zero())
         .collect()
 }
+
+/// A closed box from `lo` to `hi` as 12 triangles wound outward (8 shared vertices), for tests.
+#[cfg(test)]
+pub(crate) fn cuboid(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let v: Vec<Vec3> = (0..8)
+        .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
+        .map(|f| lo + f * (hi - lo))
+        .collect();
+    let faces = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let t = faces
+        .iter()
+        .flat_map(|[a, b, c, d]| [[*a, *b, *c], [*a, *c, *d]])
+        .collect();
+    (v, t)
+}

@@ -121,20 +121,10 @@ pub fn inside_out_measure(triangles: impl Iterator<Item = [Vec3; 3]> + Clone) ->
 mod tests {
     use super::*;
 
-    /// An axis-aligned box's 12 triangles, wound outward.
+    /// An axis-aligned box from the origin to `size`, as 12 triangles wound outward.
     fn cube(size: Vec3) -> Vec<[Vec3; 3]> {
-        let v = |i: usize| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, (i >> 2) as f32) * size;
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        (quads.iter())
-            .flat_map(|q| [[v(q[0]), v(q[1]), v(q[2])], [v(q[0]), v(q[2]), v(q[3])]])
-            .collect()
+        let (v, t) = crate::mesh::cuboid(Vec3::ZERO, size);
+        t.iter().map(|t| t.map(|i| v[i as usize])).collect()
     }
 
     #[test]
