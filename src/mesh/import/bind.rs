@@ -5,8 +5,9 @@
 //! glTF says those matrices are the inverses of the joints' global transforms, so the stored
 //! vertices are the bind pose in the scene's space, as Blender writes them. Files converted
 //! from Collada (CesiumMan) made them relative to the mesh's node instead, whose transform
-//! then places them: read the glTF way, CesiumMan's bind pose lies on its back, read that way
-//! a Blender export of him lies on his side. [`Asset::bind_place`] tells the two apart by the
+//! then places them: read the glTF way, CesiumMan's bind pose stands along z (his stored
+//! vertices are z up, 1.507 m along z) in a y-up scene; read his way, a Blender export of him
+//! lies on his side (1.507 m along x). [`Asset::bind_place`] tells the two apart by the
 //! skeleton's root joint.
 
 use super::{morph, Asset, Mesh};
